@@ -1,0 +1,26 @@
+# The two commands of README.md. Both create (or reuse) .venv and install what they need.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+# make reproduce DATA=synthetic (default: no download, minutes on a CPU, writes runs/synthetic)
+# make reproduce DATA=real      (the benchmark archives under $$ANSEG_DATA; writes figures/ and results/)
+DATA ?= synthetic
+
+.PHONY: reproduce test clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[notebooks,dev]"
+	$(BIN)/python -m ipykernel install --prefix $(VENV) --name anseg --display-name "anseg (.venv)" > /dev/null
+	touch $(STAMP)
+
+reproduce: $(STAMP)
+	$(BIN)/python -m anseg.reproduce --data $(DATA)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+clean:
+	rm -rf $(VENV) runs

@@ -1,0 +1,298 @@
+"""Triangle meshes: the `Mesh` container, loading and saving, checks and repair.
+
+A `Mesh` is two arrays, ``vertices`` (V, 3) float64 and ``faces`` (F, 3)
+int64, plus derived quantities computed on first use (areas, normals, the
+edge table and the edge-sharing face adjacency). Face order is never changed
+by loading, so per-face label files stay aligned with the faces.
+
+Conventions used throughout the package:
+
+* local edge ``k`` of face ``f`` joins ``faces[f, k]`` and ``faces[f, (k+1) % 3]``;
+* ``edges`` holds each undirected edge once, as a sorted vertex pair, numbered
+  in order of first appearance when walking faces and their local edges (the
+  order MeshCNN uses for its per-edge labels);
+* ``dihedral_angles`` are signed: positive across a convex edge, negative
+  across a concave one, zero when the two faces are coplanar.
+"""
+
+from __future__ import annotations
+
+import os
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+SUPPORTED_SUFFIXES = (".off", ".obj", ".ply")
+
+
+class MeshError(ValueError):
+    """A mesh file or array that the package cannot work with, and why."""
+
+
+class Mesh:
+    """A triangle mesh with derived per-face and per-edge quantities.
+
+    Construction converts and shape-checks the arrays but does not validate
+    the geometry; call :meth:`validate` (``load_mesh`` does) for that.
+    """
+
+    def __init__(self, vertices, faces):
+        vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+        faces = np.ascontiguousarray(faces, dtype=np.int64)
+        if vertices.ndim != 2 or vertices.shape[1] != 3:
+            raise MeshError(f"vertices must have shape (V, 3), got {vertices.shape}")
+        if faces.ndim != 2 or faces.shape[1] != 3:
+            raise MeshError(f"faces must have shape (F, 3) (triangles only), got {faces.shape}")
+        self.vertices = vertices
+        self.faces = faces
+
+    def __repr__(self) -> str:
+        return f"Mesh({self.n_vertices} vertices, {self.n_faces} faces)"
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.vertices)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+    # ------------------------------------------------------------------ faces
+    @cached_property
+    def _face_cross(self) -> np.ndarray:
+        v = self.vertices[self.faces]
+        return np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        """(F,) triangle areas."""
+        return 0.5 * np.linalg.norm(self._face_cross, axis=1)
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit normals (right-hand rule on the vertex order); zero for degenerate faces."""
+        norm = 2.0 * self.face_areas[:, None]
+        return np.divide(self._face_cross, norm, out=np.zeros_like(self._face_cross), where=norm > 0)
+
+    @cached_property
+    def face_centroids(self) -> np.ndarray:
+        """(F, 3) centroids."""
+        return self.vertices[self.faces].mean(axis=1)
+
+    # ------------------------------------------------------------------ edges
+    @cached_property
+    def _edge_table(self) -> tuple[np.ndarray, np.ndarray]:
+        half = np.stack([self.faces, np.roll(self.faces, -1, axis=1)], axis=2).reshape(-1, 2)
+        key = np.sort(half, axis=1)
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        # renumber so that edges appear in order of first occurrence (MeshCNN's order)
+        order = np.argsort(first, kind="stable")
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        edges = key[first[order]]
+        return edges, rank[inverse.reshape(-1)].reshape(-1, 3)
+
+    @property
+    def edges(self) -> np.ndarray:
+        """(E, 2) undirected edges as sorted vertex pairs, in order of first appearance."""
+        return self._edge_table[0]
+
+    @property
+    def face_edges(self) -> np.ndarray:
+        """(F, 3) index into :attr:`edges` of each face's local edges."""
+        return self._edge_table[1]
+
+    @cached_property
+    def edge_lengths(self) -> np.ndarray:
+        """(E,) edge lengths."""
+        e = self.edges
+        return np.linalg.norm(self.vertices[e[:, 0]] - self.vertices[e[:, 1]], axis=1)
+
+    @cached_property
+    def edge_face_counts(self) -> np.ndarray:
+        """(E,) number of faces on each edge: 1 boundary, 2 interior, >2 non-manifold."""
+        return np.bincount(self.face_edges.ravel(), minlength=len(self.edges))
+
+    @cached_property
+    def edge_faces(self) -> np.ndarray:
+        """(E, 2) the faces on each edge, -1 where a boundary edge has only one.
+
+        Raises MeshError on non-manifold edges (more than two faces).
+        """
+        if (self.edge_face_counts > 2).any():
+            raise MeshError(f"{int((self.edge_face_counts > 2).sum())} non-manifold edges (shared by more than two faces)")
+        fe = self.face_edges.ravel()
+        face_of = np.repeat(np.arange(self.n_faces), 3)
+        order = np.argsort(fe, kind="stable")
+        fe, face_of = fe[order], face_of[order]
+        out = np.full((len(self.edges), 2), -1, dtype=np.int64)
+        first = np.ones(len(fe), dtype=bool)
+        first[1:] = fe[1:] != fe[:-1]
+        out[fe[first], 0] = face_of[first]
+        out[fe[~first], 1] = face_of[~first]
+        return out
+
+    @cached_property
+    def face_neighbors(self) -> np.ndarray:
+        """(F, 3) the face across each local edge, -1 on the boundary."""
+        ef = self.edge_faces[self.face_edges]  # (F, 3, 2)
+        own = np.arange(self.n_faces)[:, None]
+        return np.where(ef[..., 0] == own, ef[..., 1], ef[..., 0])
+
+    @cached_property
+    def interior_edges(self) -> np.ndarray:
+        """(P,) indices of edges shared by exactly two faces."""
+        return np.flatnonzero(self.edge_faces[:, 1] >= 0)
+
+    @property
+    def face_adjacency(self) -> np.ndarray:
+        """(P, 2) pairs of faces sharing an edge; row i shares ``edges[interior_edges[i]]``."""
+        return self.edge_faces[self.interior_edges]
+
+    @cached_property
+    def dihedral_angles(self) -> np.ndarray:
+        """(P,) signed angle between the normals of each adjacent face pair, in [-pi, pi].
+
+        Positive across convex edges, negative across concave ones.
+        """
+        f0, f1 = self.face_adjacency.T
+        n0, n1 = self.face_normals[f0], self.face_normals[f1]
+        angle = np.arccos(np.clip((n0 * n1).sum(axis=1), -1.0, 1.0))
+        # the vertex of f1 off the shared edge lies above f0's plane on a concave edge
+        e = self.edges[self.interior_edges]
+        tri = self.faces[f1]
+        opposite = tri[np.arange(len(tri)), np.argmax((tri != e[:, :1]) & (tri != e[:, 1:]), axis=1)]
+        height = ((self.vertices[opposite] - self.face_centroids[f0]) * n0).sum(axis=1)
+        return np.where(height > 0, -angle, angle)
+
+    @cached_property
+    def boundary_loop_count(self) -> int:
+        """Number of closed boundary loops (connected components of boundary edges)."""
+        b = self.edges[self.edge_face_counts == 1]
+        if len(b) == 0:
+            return 0
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        verts, local = np.unique(b, return_inverse=True)
+        local = local.reshape(-1, 2)
+        graph = coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])), shape=(len(verts),) * 2)
+        return int(connected_components(graph, directed=False)[0])
+
+    @property
+    def euler_characteristic(self) -> int:
+        """V - E + F over the vertices that faces use."""
+        used = len(np.unique(self.faces))
+        return used - len(self.edges) + self.n_faces
+
+    # ------------------------------------------------------------- utilities
+    def normalized(self) -> "Mesh":
+        """A copy scaled to unit total surface area and centred at the area-weighted centroid."""
+        area = self.face_areas.sum()
+        if not area > 0:
+            raise MeshError("mesh has zero total area")
+        centre = (self.face_centroids * self.face_areas[:, None]).sum(axis=0) / area
+        return Mesh((self.vertices - centre) / np.sqrt(area), self.faces)
+
+    def validate(self) -> "Mesh":
+        """Raise MeshError unless the mesh is usable; return self for chaining.
+
+        Checks, in order: not empty, finite coordinates, face indices in
+        range, no zero-area faces, no non-manifold edges.
+        """
+        if self.n_faces == 0 or self.n_vertices == 0:
+            raise MeshError("mesh is empty (no faces or no vertices)")
+        bad = ~np.isfinite(self.vertices).all(axis=1)
+        if bad.any():
+            raise MeshError(f"{int(bad.sum())} vertices have NaN or infinite coordinates (first: {int(np.flatnonzero(bad)[0])})")
+        if self.faces.min() < 0 or self.faces.max() >= self.n_vertices:
+            raise MeshError(
+                f"faces index missing vertices: indices span [{self.faces.min()}, {self.faces.max()}] "
+                f"but there are {self.n_vertices} vertices"
+            )
+        degenerate = np.flatnonzero(self.face_areas <= _area_tolerance(self))
+        if len(degenerate):
+            raise MeshError(
+                f"{len(degenerate)} zero-area faces (first: {int(degenerate[0])}); "
+                "anseg.repair(mesh) removes them and keeps a map to the input faces"
+            )
+        nonmanifold = int((self.edge_face_counts > 2).sum())
+        if nonmanifold:
+            raise MeshError(f"{nonmanifold} non-manifold edges (shared by more than two faces); anseg needs a manifold mesh")
+        return self
+
+
+def _area_tolerance(mesh: Mesh) -> float:
+    diagonal = np.linalg.norm(np.ptp(mesh.vertices, axis=0)) if mesh.n_vertices else 0.0
+    return 1e-14 * diagonal * diagonal
+
+
+def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
+    """Merge duplicate vertices and drop degenerate and duplicate faces.
+
+    Returns the repaired mesh and ``face_map``, the input index of every
+    repaired face (so that ``labels[face_map]`` carries per-face input labels
+    over). Vertices with identical coordinates are merged; faces that then
+    repeat a vertex, have zero area or repeat another face's vertex set are
+    dropped (the first copy is kept); unused vertices are removed. Non-finite
+    coordinates, bad indices and non-manifold edges are not repaired.
+    """
+    if mesh.n_faces == 0:
+        raise MeshError("mesh is empty (no faces)")
+    if not np.isfinite(mesh.vertices).all():
+        raise MeshError("cannot repair NaN or infinite coordinates")
+    if mesh.faces.min() < 0 or mesh.faces.max() >= mesh.n_vertices:
+        raise MeshError("cannot repair faces that index missing vertices")
+    _, first, inverse = np.unique(mesh.vertices, axis=0, return_index=True, return_inverse=True)
+    faces = inverse.reshape(-1)[mesh.faces]
+    vertices = mesh.vertices[first]
+    keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
+    keep &= Mesh(vertices, faces).face_areas > _area_tolerance(mesh)
+    _, unique_first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
+    not_duplicate = np.zeros(len(faces), dtype=bool)
+    not_duplicate[unique_first] = True
+    face_map = np.flatnonzero(keep & not_duplicate)
+    if len(face_map) == 0:
+        raise MeshError("no faces left after repair")
+    used, faces = np.unique(faces[face_map], return_inverse=True)
+    return Mesh(vertices[used], faces.reshape(-1, 3)), face_map
+
+
+def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
+    """Read a triangle mesh from .off, .obj or .ply, keeping vertex and face order.
+
+    With ``validate`` (the default) the mesh is checked and a MeshError says
+    what is wrong; pass ``validate=False`` and call :func:`repair` to fix
+    duplicate vertices and degenerate or duplicate faces.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MeshError(f"{path}: no such file")
+    if path.suffix.lower() not in SUPPORTED_SUFFIXES:
+        raise MeshError(f"{path}: unsupported format {path.suffix!r} (expected one of {', '.join(SUPPORTED_SUFFIXES)})")
+    import trimesh
+
+    try:
+        loaded = trimesh.load(path, process=False, maintain_order=True, force="mesh")
+    except Exception as exc:  # trimesh raises many types on bad files
+        raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from exc
+    faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64).reshape(-1, 3)
+    vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64).reshape(-1, 3)
+    mesh = Mesh(vertices, faces)
+    if validate:
+        try:
+            mesh.validate()
+        except MeshError as exc:
+            raise MeshError(f"{path}: {exc}") from None
+    return mesh
+
+
+def save_mesh(path: str | os.PathLike, mesh: Mesh, face_colors: np.ndarray | None = None) -> None:
+    """Write a mesh (.ply, .obj or .off); ``face_colors`` (F, 3 or 4) uint8 are kept in PLY."""
+    import trimesh
+
+    out = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    if face_colors is not None:
+        out.visual.face_colors = np.asarray(face_colors, dtype=np.uint8)
+    out.export(Path(path))
