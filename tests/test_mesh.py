@@ -1,0 +1,141 @@
+"""Mesh container, loading, checks and repair."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from anseg.mesh import Mesh, MeshError, load_mesh, repair, save_mesh
+from conftest import grid_mesh
+
+TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+TETRA_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+
+
+def write_off(path, vertices, faces):
+    lines = ["OFF", f"{len(vertices)} {len(faces)} 0"]
+    lines += [" ".join(map(str, v)) for v in vertices]
+    lines += ["3 " + " ".join(map(str, f)) for f in faces]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_tetrahedron_quantities():
+    m = Mesh(TETRA_V, TETRA_F).validate()
+    assert m.face_areas == pytest.approx([0.5, 0.5, 0.5, np.sqrt(3) / 2])
+    assert np.allclose(np.linalg.norm(m.face_normals, axis=1), 1)
+    # outward orientation: normals point away from the centroid
+    assert ((m.face_centroids - TETRA_V.mean(0)) * m.face_normals).sum(1).min() > 0
+    assert len(m.edges) == 6 and m.euler_characteristic == 2 and m.boundary_loop_count == 0
+    assert (m.face_neighbors >= 0).all() and len(m.face_adjacency) == 6
+    # a convex solid: every edge convex
+    assert (m.dihedral_angles > 0).all()
+
+
+def test_edge_order_is_first_appearance():
+    m = Mesh(TETRA_V, TETRA_F)
+    assert m.edges[:3].tolist() == [[0, 2], [1, 2], [0, 1]]
+    # local edge k of face f joins faces[f, k] and faces[f, k+1]
+    for f in range(4):
+        for k in range(3):
+            assert sorted(m.edges[m.face_edges[f, k]]) == sorted([m.faces[f, k], m.faces[f, (k + 1) % 3]])
+
+
+def test_neighbors_are_symmetric_on_grid():
+    m = grid_mesh(5)
+    nb = m.face_neighbors
+    assert m.boundary_loop_count == 1 and m.euler_characteristic == 1
+    assert (nb == -1).sum() == 20  # the 20 boundary edges of a 5x5 grid
+    for f, k in zip(*np.nonzero(nb >= 0)):
+        assert f in nb[nb[f, k]]
+    assert np.allclose(m.dihedral_angles, 0)
+
+
+def test_concave_edge_has_negative_dihedral():
+    # two triangles folded like a valley (normals +z, opposite vertices raised)
+    v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0.5], [0.5, -1, 0.5]], float)
+    m = Mesh(v, [[0, 1, 2], [1, 0, 3]])
+    assert m.dihedral_angles[0] < 0
+    m_ridge = Mesh(v * [1, 1, -1], [[0, 1, 2], [1, 0, 3]])
+    assert m_ridge.dihedral_angles[0] > 0
+
+
+def test_normalized_has_unit_area_and_centre():
+    m = Mesh(TETRA_V * 13.0 + 5, TETRA_F).normalized()
+    assert m.face_areas.sum() == pytest.approx(1.0)
+    assert np.allclose((m.face_centroids * m.face_areas[:, None]).sum(0), 0, atol=1e-12)
+
+
+@pytest.mark.parametrize("suffix", [".off", ".obj", ".ply"])
+def test_save_load_roundtrip_keeps_order(tmp_path, suffix):
+    m = grid_mesh(3)
+    path = tmp_path / f"grid{suffix}"
+    save_mesh(path, m)
+    back = load_mesh(path)
+    assert np.array_equal(back.faces, m.faces)
+    assert np.allclose(back.vertices, m.vertices)
+    assert back.vertices.dtype == np.float64 and back.faces.dtype == np.int64
+
+
+def test_load_errors(tmp_path):
+    with pytest.raises(MeshError, match="no such file"):
+        load_mesh(tmp_path / "missing.off")
+    bad = tmp_path / "bad.off"
+    bad.write_text("this is not a mesh\n")
+    with pytest.raises(MeshError):
+        load_mesh(bad)
+    with pytest.raises(MeshError, match="unsupported format"):
+        load_mesh(write_off(tmp_path / "m.stl", TETRA_V, TETRA_F))
+
+
+@pytest.mark.parametrize(
+    "vertices, faces, message",
+    [
+        (np.zeros((0, 3)), np.zeros((0, 3), int), "empty"),
+        (np.where(np.arange(12).reshape(4, 3) == 4, np.nan, TETRA_V), TETRA_F, "NaN or infinite"),
+        (np.where(np.arange(12).reshape(4, 3) == 4, np.inf, TETRA_V), TETRA_F, "NaN or infinite"),
+        (TETRA_V, np.vstack([TETRA_F[:3], [1, 2, 7]]), "index missing vertices"),
+        (np.vstack([TETRA_V, [2, 0, 0]]), np.vstack([TETRA_F, [0, 1, 4]]), "zero-area"),
+        (np.vstack([TETRA_V, [1, 1, 1]]), np.vstack([TETRA_F, [1, 2, 4]]), "non-manifold"),
+    ],
+)
+def test_validate_errors(vertices, faces, message):
+    with pytest.raises(MeshError, match=message):
+        Mesh(vertices, faces).validate()
+
+
+def test_load_reports_file_and_problem(tmp_path):
+    path = write_off(tmp_path / "nm.off", np.vstack([TETRA_V, [1, 1, 1]]), np.vstack([TETRA_F, [1, 2, 4]]))
+    with pytest.raises(MeshError, match=r"nm\.off.*non-manifold"):
+        load_mesh(path)
+    assert load_mesh(path, validate=False).n_faces == 5
+
+
+def test_shape_errors():
+    with pytest.raises(MeshError, match=r"\(V, 3\)"):
+        Mesh(np.zeros((4, 2)), TETRA_F)
+    with pytest.raises(MeshError, match="triangles only"):
+        Mesh(TETRA_V, np.zeros((2, 4), int))
+
+
+def test_repair_merges_and_drops_with_face_map():
+    # duplicate vertex 4 == vertex 0; a degenerate face; a duplicate face
+    v = np.vstack([TETRA_V, TETRA_V[0]])
+    f = np.array([[4, 2, 1], [0, 1, 3], [0, 0, 2], [0, 3, 2], [1, 2, 3], [3, 1, 0]])
+    fixed, face_map = repair(Mesh(v, f))
+    assert face_map.tolist() == [0, 1, 3, 4]
+    assert fixed.n_vertices == 4 and fixed.n_faces == 4
+    fixed.validate()
+    # repaired faces are the input faces (through the vertex merge), in input order
+    assert np.allclose(fixed.vertices[fixed.faces], v[f[face_map]])
+    labels = np.array([10, 11, 12, 13, 14, 15])
+    assert labels[face_map].tolist() == [10, 11, 13, 14]
+
+
+def test_repair_refuses_what_it_cannot_fix():
+    with pytest.raises(MeshError, match="NaN"):
+        repair(Mesh(np.full((3, 3), np.nan), [[0, 1, 2]]))
+    with pytest.raises(MeshError, match="missing vertices"):
+        repair(Mesh(TETRA_V, [[0, 1, 9]]))
+    with pytest.raises(MeshError, match="no faces left"):
+        repair(Mesh(TETRA_V, [[0, 0, 1]]))
