@@ -1,0 +1,310 @@
+"""The attention network: per-face embedding, patch tokens, a transformer, face attention and class logits.
+
+One mesh per call. Faces come grouped into patches (the transformer's tokens) by a
+layout computed elsewhere: ``patch_of_face`` and ``slot_of_face`` put every face in
+one slot of a ``(n_patches, patch_size)`` grid; unused slots are padding.
+
+Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
+
+    x (F, in) --embed MLP--> e (F, W) --scatter--> (T, P, W) + mask (T, P)
+    per-face score s = w.e; share = softmax of s over the patch's real faces
+    token = sum_p share * e  (+ optional positional signal)       (T, W)
+    depth x pre-norm block: h += Attn(LN h); h += MLP(LN h)       (T, W)
+    logits = head([e, LN(h)[patch]])                              (F, C)
+    attention = received mass of the token (last block) x share x F  (F,)
+
+Choices, and why:
+
+- **Attention** is Eq. 1-4 of the paper, per head: Q, K, V = X W, A = softmax(Q K^T / sqrt(d))
+  with d the head dimension. Outputs go through ``scaled_dot_product_attention`` so A is
+  never stored for all tokens at once (memory O(T), not O(T^2)).
+- **Attention value of a face.** A token's value is the attention mass it *receives*:
+  the mean over queries and heads of its column of A, taken from the **last** block (the
+  one closest to the loss; one extra pass instead of ``depth``). These masses sum to 1
+  over tokens. They are computed in chunks of queries (:func:`received_attention`), so
+  memory stays O(chunk x T). A token's mass is spread over its faces by the same
+  learned share that pools the faces into the token: tying the two gives the share a
+  gradient from the classification loss (the collapse that consumes the attention is
+  not differentiable), and the faces that make up most of a token get most of its
+  attention. Face attention = token mass x face share x F, so its **mean over the real
+  faces of a mesh is exactly 1** and values compare across meshes of different size.
+  It is computed without gradient: it guides the collapse and is no training target.
+- **Positional signal**: off by default (``position_frequencies = 0``). The sequence
+  is ordered by K-means cluster, and cluster numbers are arbitrary from mesh to mesh, so
+  absolute position in the sequence carries no meaning that transfers; it is exposed
+  as a parameter to be measured (Fourier features of the normalised position t/(T-1)
+  through a learned Linear).
+- **Initialisation**: the paper draws initial weights from "N(0, 0.001)", read here as
+  variance 0.001 (std ~ 0.0316), for every Linear weight; biases are zero and LayerNorm
+  keeps its default (weight 1, bias 0).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from anseg.cache import atomic_write
+
+# Scores in one chunk of received_attention: 16 MiB of float32, small enough to stay
+# in cache between the passes over it (measured several times faster than 64 MiB at 12.5K tokens).
+_CHUNK_ELEMENTS = 1 << 22
+
+
+@dataclass
+class ModelConfig:
+    """Hyper-parameters of :class:`AttentionSegmenter`."""
+
+    in_features: int
+    n_classes: int
+    width: int = 64
+    depth: int = 2
+    heads: int = 4
+    patch_size: int = 16
+    dropout: float = 0.0
+    init_std: float = math.sqrt(0.001)  # the paper's N(0, 0.001), read as variance
+    position_frequencies: int = 0  # 0: no positional signal (see module docstring)
+
+    def __post_init__(self) -> None:
+        for name in ("in_features", "n_classes", "width", "depth", "heads", "patch_size"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"ModelConfig.{name} must be >= 1, got {getattr(self, name)}")
+        if self.width % self.heads:
+            raise ValueError(f"ModelConfig.width ({self.width}) must be divisible by heads ({self.heads})")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"ModelConfig.dropout must be in [0, 1), got {self.dropout}")
+        if self.init_std <= 0:
+            raise ValueError(f"ModelConfig.init_std must be > 0, got {self.init_std}")
+        if self.position_frequencies < 0:
+            raise ValueError(f"ModelConfig.position_frequencies must be >= 0, got {self.position_frequencies}")
+
+
+class Output(NamedTuple):
+    """Per-face class logits (F, C) and attention values (F,), mean 1; attention is None when not asked for."""
+
+    logits: torch.Tensor
+    attention: torch.Tensor | None
+
+
+def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = None) -> torch.Tensor:
+    """Attention mass each key receives: softmax(q k^T / sqrt(d)) averaged over queries and heads.
+
+    ``q``, ``k``: (H, T, d). Returns (T,), summing to 1. Scores are formed ``chunk``
+    queries at a time (default: as many as fit in 2^22 scores), so memory is
+    O(H x chunk x T) and the (T x T) matrix never exists whole.
+    """
+    if q.dim() != 3 or q.shape != k.shape:
+        raise ValueError(f"q and k must both be (heads, tokens, dim), got {tuple(q.shape)} and {tuple(k.shape)}")
+    heads, n_tokens, dim = q.shape
+    if chunk is None:
+        chunk = max(1, _CHUNK_ELEMENTS // (heads * n_tokens))
+    if chunk < 1:
+        raise ValueError(f"chunk must be >= 1, got {chunk}")
+    with torch.no_grad():
+        q = q.float() * (1.0 / math.sqrt(dim))
+        keys = k.float().transpose(1, 2)
+        mass = q.new_zeros(1, n_tokens)
+        for start in range(0, n_tokens, chunk):
+            # Softmax in place, its row normalisation folded into the column sum as one
+            # (1 x chunk) @ (chunk x T) product per head: no second copy of the chunk.
+            weights = torch.matmul(q[:, start : start + chunk], keys)
+            weights.sub_(weights.amax(dim=-1, keepdim=True)).exp_()
+            inverse_row_sums = weights.sum(dim=-1, keepdim=True).reciprocal_()
+            mass += torch.matmul(inverse_row_sums.transpose(1, 2), weights).sum(dim=0)
+    return mass[0] / (heads * n_tokens)
+
+
+def to_patches(
+    values: torch.Tensor, patch_of_face: torch.Tensor, slot_of_face: torch.Tensor, n_patches: int, patch_size: int
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Scatter per-face rows (F, ...) into a zero-padded (T, P, ...) grid; also return the (T, P) mask of real slots.
+
+    Checks the layout: every face in range, no two faces in one slot, no empty patch.
+    """
+    n_faces = values.shape[0]
+    if patch_of_face.shape != (n_faces,) or slot_of_face.shape != (n_faces,):
+        raise ValueError(
+            f"patch_of_face {tuple(patch_of_face.shape)} and slot_of_face {tuple(slot_of_face.shape)} "
+            f"must both be ({n_faces},), one entry per face"
+        )
+    if patch_of_face.dtype.is_floating_point or slot_of_face.dtype.is_floating_point:
+        raise ValueError("patch_of_face and slot_of_face must be integer tensors")
+    if n_faces == 0:
+        raise ValueError("no faces: the mesh is empty")
+    for name, index, bound in (("patch_of_face", patch_of_face, n_patches), ("slot_of_face", slot_of_face, patch_size)):
+        low, high = int(index.min()), int(index.max())
+        if low < 0 or high >= bound:
+            raise ValueError(f"{name} must lie in [0, {bound}), got values in [{low}, {high}]")
+    patch_of_face, slot_of_face = patch_of_face.long(), slot_of_face.long()
+    occupancy = torch.bincount(patch_of_face * patch_size + slot_of_face, minlength=n_patches * patch_size)
+    if int(occupancy.max()) > 1:
+        raise ValueError("two faces share one (patch, slot): the layout is not one-to-one")
+    mask = occupancy.view(n_patches, patch_size).bool()
+    if not bool(mask.any(dim=1).all()):
+        raise ValueError(f"{int((~mask.any(dim=1)).sum())} of {n_patches} patches hold no face")
+    grid = values.new_zeros((n_patches, patch_size, *values.shape[1:]))
+    grid[patch_of_face, slot_of_face] = values
+    return grid, mask
+
+
+class SelfAttention(nn.Module):
+    """Multi-head self-attention of Eq. 1-4, through scaled_dot_product_attention."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.heads = config.heads
+        self.qkv = nn.Linear(config.width, 3 * config.width)
+        self.proj = nn.Linear(config.width, config.width)
+        # Dropout on the output, not on A: sdpa's dropout_p sends CPU to the path that stores all of A.
+        self.dropout = nn.Dropout(config.dropout)
+
+    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(T, W) -> output (T, W), and the per-head queries and keys (H, T, d)."""
+        n_tokens, width = h.shape
+        # (3, 1, H, T, d): the leading batch axis of 1 matters, the CPU flash kernel
+        # wants 4-d input; 3-d input falls back to a path that stores all of A (5 GiB at 12.5K tokens).
+        q, k, v = self.qkv(h).view(n_tokens, 3, self.heads, width // self.heads).permute(1, 2, 0, 3).unsqueeze(1)
+        out = F.scaled_dot_product_attention(q, k, v)
+        return self.dropout(self.proj(out[0].transpose(0, 1).reshape(n_tokens, width))), q[0], k[0]
+
+
+class Block(nn.Module):
+    """Pre-norm transformer block: h + Attn(LN h), then + MLP(LN h)."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.norm_attention = nn.LayerNorm(config.width)
+        self.attention = SelfAttention(config)
+        self.norm_mlp = nn.LayerNorm(config.width)
+        self.mlp = nn.Sequential(
+            nn.Linear(config.width, 4 * config.width),
+            nn.GELU(),
+            nn.Linear(4 * config.width, config.width),
+            nn.Dropout(config.dropout),
+        )
+
+    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(T, W) -> (T, W), plus this block's queries and keys (H, T, d)."""
+        update, q, k = self.attention(self.norm_attention(h))
+        h = h + update
+        return h + self.mlp(self.norm_mlp(h)), q, k
+
+
+class AttentionSegmenter(nn.Module):
+    """Per-face class logits and attention values from per-face features and a patch layout (module docstring)."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.config = config
+        width = config.width
+        self.embed = nn.Sequential(nn.Linear(config.in_features, width), nn.GELU(), nn.Linear(width, width))
+        self.share_score = nn.Linear(width, 1)
+        self.position = nn.Linear(2 * config.position_frequencies, width) if config.position_frequencies else None
+        self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))
+        self.norm_out = nn.LayerNorm(width)
+        self.head = nn.Sequential(
+            nn.Linear(2 * width, width), nn.GELU(), nn.Dropout(config.dropout), nn.Linear(width, config.n_classes)
+        )
+        for module in self.modules():
+            if isinstance(module, nn.Linear):
+                nn.init.normal_(module.weight, mean=0.0, std=config.init_std)
+                nn.init.zeros_(module.bias)
+
+    def forward(
+        self,
+        x: torch.Tensor,
+        patch_of_face: torch.Tensor,
+        slot_of_face: torch.Tensor,
+        n_patches: int,
+        need_attention: bool = True,
+    ) -> Output:
+        """Logits (F, C) and attention (F,) of one mesh's faces.
+
+        ``x``: (F, in_features) features; ``patch_of_face``/``slot_of_face``: (F,) integer
+        tensors or arrays, the position of every face in the (n_patches, patch_size) grid. ``need_attention=False``
+        skips the received-attention pass (as costly as one attention layer) when only
+        the logits are wanted, e.g. in most training steps.
+        """
+        if x.dim() != 2 or x.shape[1] != self.config.in_features:
+            raise ValueError(f"x must be (faces, {self.config.in_features}), got {tuple(x.shape)}")
+        # PatchLayout (anseg.cluster) holds numpy arrays; accept them as they are.
+        patch_of_face = torch.as_tensor(patch_of_face, device=x.device)
+        slot_of_face = torch.as_tensor(slot_of_face, device=x.device)
+        grid, mask = to_patches(x, patch_of_face, slot_of_face, n_patches, self.config.patch_size)
+        logits, attention = self.forward_patches(grid, mask, need_attention)
+        patch_of_face, slot_of_face = patch_of_face.long(), slot_of_face.long()
+        face_attention = attention[patch_of_face, slot_of_face] if attention is not None else None
+        return Output(logits[patch_of_face, slot_of_face], face_attention)
+
+    def forward_patches(
+        self, grid: torch.Tensor, mask: torch.Tensor, need_attention: bool = True
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """The network on a (T, P, in_features) grid with its (T, P) mask of real slots.
+
+        Returns logits (T, P, C) and attention (T, P) (or None); both are meaningless
+        at padding slots (attention is 0 there), whose input values are never read.
+        """
+        if mask.dim() != 2 or mask.dtype != torch.bool:
+            raise ValueError(f"mask must be a (patches, patch_size) bool tensor, got {mask.dtype} {tuple(mask.shape)}")
+        n_patches, patch_size = mask.shape
+        if grid.shape != (n_patches, patch_size, self.config.in_features):
+            expected = (n_patches, patch_size, self.config.in_features)
+            raise ValueError(f"grid must be {expected}, got {tuple(grid.shape)}")
+        if not bool(mask.any(dim=1).all()):
+            raise ValueError("every patch needs at least one real face")
+        if grid.dtype != self.norm_out.weight.dtype:
+            raise ValueError(f"features must be {self.norm_out.weight.dtype} like the model, got {grid.dtype}")
+        if not bool(torch.isfinite(grid[mask]).all()):
+            raise ValueError("features hold NaN or inf at real faces")
+        real = mask.unsqueeze(-1)
+        # masked_fill, not multiply: padding may hold NaN or inf and must not leak.
+        embedded = self.embed(grid.masked_fill(~real, 0.0)).masked_fill(~real, 0.0)
+        share = torch.softmax(self.share_score(embedded).squeeze(-1).masked_fill(~mask, -math.inf), dim=1)
+        h = (share.unsqueeze(-1) * embedded).sum(dim=1)
+        if self.position is not None:
+            h = h + self.position(self._position_features(n_patches, h.device))
+        for block in self.blocks:
+            h, q, k = block(h)
+        context = self.norm_out(h).unsqueeze(1).expand(-1, patch_size, -1)
+        logits = self.head(torch.cat([embedded, context], dim=-1))
+        if not need_attention:
+            return logits, None
+        with torch.no_grad():
+            mass = received_attention(q.detach(), k.detach())
+            attention = mass.unsqueeze(1) * share.detach() * mask.sum()
+        return logits, attention
+
+    def _position_features(self, n_tokens: int, device: torch.device) -> torch.Tensor:
+        """sin/cos of 2^j pi t/(T-1), j < position_frequencies: (T, 2 x frequencies)."""
+        position = torch.arange(n_tokens, device=device, dtype=torch.float32) / max(n_tokens - 1, 1)
+        frequencies = math.pi * 2.0 ** torch.arange(self.config.position_frequencies, device=device)
+        angles = position.unsqueeze(1) * frequencies
+        return torch.cat([angles.sin(), angles.cos()], dim=1)
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Number of trainable parameters."""
+    return sum(p.numel() for p in model.parameters() if p.requires_grad)
+
+
+def save(model: AttentionSegmenter, path: str | os.PathLike) -> Path:
+    """Write the model's config and weights to ``path`` atomically."""
+    payload = {"config": asdict(model.config), "state_dict": model.state_dict()}
+    return atomic_write(path, lambda tmp: torch.save(payload, tmp))
+
+
+def load(path: str | os.PathLike, map_location: str | torch.device = "cpu") -> AttentionSegmenter:
+    """Rebuild a model written by :func:`save`, in eval mode."""
+    payload = torch.load(path, map_location=map_location, weights_only=True)
+    if not isinstance(payload, dict) or not {"config", "state_dict"} <= payload.keys():
+        raise ValueError(f"{path} is not a model written by anseg.model.save")
+    model = AttentionSegmenter(ModelConfig(**payload["config"]))
+    model.load_state_dict(payload["state_dict"])
+    return model.eval()

@@ -1,0 +1,183 @@
+"""The attention network: shapes, the attention value, layout invariances, init, learning, save/load."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from anseg.model import (
+    AttentionSegmenter,
+    ModelConfig,
+    count_parameters,
+    load,
+    received_attention,
+    save,
+    to_patches,
+)
+
+
+def random_layout(n_faces: int, patch_size: int, generator: torch.Generator):
+    """Faces in random order, packed into patches; the last patch is partly padding."""
+    order = torch.randperm(n_faces, generator=generator)
+    position = torch.empty(n_faces, dtype=torch.long)
+    position[order] = torch.arange(n_faces)
+    return position // patch_size, position % patch_size, math.ceil(n_faces / patch_size)
+
+
+@pytest.fixture
+def problem():
+    g = torch.Generator().manual_seed(0)
+    config = ModelConfig(in_features=5, n_classes=3, width=32, depth=2, heads=4, patch_size=8)
+    torch.manual_seed(0)
+    model = AttentionSegmenter(config).eval()
+    x = torch.randn(203, 5, generator=g)
+    patch, slot, n_patches = random_layout(203, 8, g)
+    return model, x, patch, slot, n_patches
+
+
+def test_shapes_and_attention_normalisation(problem):
+    model, x, patch, slot, n_patches = problem
+    out = model(x, patch, slot, n_patches)
+    assert out.logits.shape == (203, 3)
+    assert out.attention.shape == (203,)
+    assert torch.isfinite(out.logits).all()
+    assert torch.isfinite(out.attention).all() and (out.attention > 0).all()
+    assert out.attention.mean().item() == pytest.approx(1.0, rel=1e-5)
+    assert model(x, patch, slot, n_patches, need_attention=False).attention is None
+
+
+def test_token_attention_is_spread_by_the_learned_share():
+    """Inside a token, face attention is proportional to exp(share score): ratios match, faces differ."""
+    torch.manual_seed(1)
+    model = AttentionSegmenter(ModelConfig(in_features=2, n_classes=2, width=16, heads=2, patch_size=4)).eval()
+    with torch.no_grad():
+        model.share_score.weight.normal_(0.0, 1.0)  # the initial scores are all near zero
+    x = torch.randn(40, 2)
+    attention = model(x, torch.arange(40) // 4, torch.arange(40) % 4, 10).attention.view(10, 4)
+    with torch.no_grad():
+        scores = model.share_score(model.embed(x)).view(10, 4)
+    expected = torch.softmax(scores, dim=1) * attention.sum(dim=1, keepdim=True)
+    torch.testing.assert_close(attention, expected)
+    assert attention.std(dim=1).min() > 1e-3
+
+
+def test_chunked_received_attention_equals_dense():
+    g = torch.Generator().manual_seed(2)
+    q, k = torch.randn(3, 37, 8, generator=g), torch.randn(3, 37, 8, generator=g)
+    dense = torch.softmax(q @ k.transpose(1, 2) / math.sqrt(8), dim=-1).mean(dim=(0, 1))
+    for chunk in (1, 5, 37, 100, None):
+        torch.testing.assert_close(received_attention(q, k, chunk=chunk), dense, rtol=1e-5, atol=1e-7)
+    assert dense.sum().item() == pytest.approx(1.0, rel=1e-5)
+
+
+def test_received_attention_rejects_bad_input():
+    with pytest.raises(ValueError, match="heads, tokens, dim"):
+        received_attention(torch.zeros(4, 8), torch.zeros(4, 8))
+    with pytest.raises(ValueError, match="chunk"):
+        received_attention(torch.zeros(1, 4, 2), torch.zeros(1, 4, 2), chunk=0)
+
+
+def test_logits_follow_tokens_not_face_index(problem):
+    model, x, patch, slot, n_patches = problem
+    out = model(x, patch, slot, n_patches)
+    perm = torch.randperm(x.shape[0], generator=torch.Generator().manual_seed(3))
+    permuted = model(x[perm], patch[perm], slot[perm], n_patches)
+    torch.testing.assert_close(permuted.logits, out.logits[perm])
+    torch.testing.assert_close(permuted.attention, out.attention[perm])
+
+
+def test_context_reaches_other_tokens(problem):
+    """Changing one patch's faces changes the logits of faces in other patches (attention mixes tokens)."""
+    model, x, patch, slot, n_patches = problem
+    out = model(x, patch, slot, n_patches)
+    changed = x.clone()
+    changed[patch == 0] += 3.0
+    other = patch != 0
+    assert not torch.allclose(model(changed, patch, slot, n_patches).logits[other], out.logits[other])
+
+
+def test_padding_values_are_never_read(problem):
+    model, x, patch, slot, n_patches = problem
+    grid, mask = to_patches(x, patch, slot, n_patches, model.config.patch_size)
+    assert (~mask).any()
+    poisoned = grid.clone()
+    poisoned[~mask] = float("nan")
+    logits, attention = model.forward_patches(grid, mask)
+    logits_p, attention_p = model.forward_patches(poisoned, mask)
+    torch.testing.assert_close(logits_p[mask], logits[mask])
+    torch.testing.assert_close(attention_p[mask], attention[mask])
+    assert (attention_p[~mask] == 0).all()
+
+
+def test_layout_errors_are_explicit(problem):
+    model, x, patch, slot, n_patches = problem
+    with pytest.raises(ValueError, match="one-to-one"):
+        model(x, torch.zeros_like(patch), torch.zeros_like(slot), n_patches)
+    with pytest.raises(ValueError, match="hold no face"):
+        model(x, patch, slot, n_patches + 1)
+    with pytest.raises(ValueError, match="slot_of_face"):
+        model(x, patch, slot + model.config.patch_size, n_patches)
+    with pytest.raises(ValueError, match=r"x must be \(faces, 5\)"):
+        model(x[:, :4], patch, slot, n_patches)
+    with pytest.raises(ValueError, match="NaN or inf"):
+        model(torch.where(patch[:, None] == 1, float("inf"), x), patch, slot, n_patches)
+    with pytest.raises(ValueError, match="float32"):
+        model(x.double(), patch, slot, n_patches)
+    with pytest.raises(ValueError, match="divisible"):
+        ModelConfig(in_features=5, n_classes=2, width=30, heads=4)
+
+
+def test_init_follows_the_paper_variance():
+    torch.manual_seed(4)
+    model = AttentionSegmenter(ModelConfig(in_features=4, n_classes=2, width=256))
+    weight = model.blocks[0].mlp[0].weight  # 1024 x 256
+    assert weight.std().item() == pytest.approx(math.sqrt(0.001), rel=0.02)
+    assert weight.mean().abs().item() < 1e-3
+    assert all((m.bias == 0).all() for m in model.modules() if isinstance(m, torch.nn.Linear))
+    assert count_parameters(model) == sum(p.numel() for p in model.parameters())
+
+
+@pytest.fixture
+def one_thread():
+    """Tiny ops: a second intra-op thread only spins, and on a busy 2-core machine it costs 10x."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def test_overfits_a_small_problem(one_thread):
+    torch.manual_seed(5)
+    g = torch.Generator().manual_seed(5)
+    x = torch.randn(500, 4, generator=g)
+    labels = (x[:, 0] > 0).long()
+    patch, slot, n_patches = random_layout(500, 16, g)
+    model = AttentionSegmenter(ModelConfig(in_features=4, n_classes=2, patch_size=16))
+    optimiser = torch.optim.Adam(model.parameters(), lr=1e-3)
+    for _ in range(200):
+        optimiser.zero_grad()
+        loss = torch.nn.functional.cross_entropy(model(x, patch, slot, n_patches, need_attention=False).logits, labels)
+        loss.backward()
+        optimiser.step()
+    model.eval()
+    accuracy = (model(x, patch, slot, n_patches).logits.argmax(1) == labels).float().mean().item()
+    assert accuracy > 0.95
+
+
+def test_save_load_round_trip(problem, tmp_path):
+    model, x, patch, slot, n_patches = problem
+    path = save(model, tmp_path / "sub" / "model.pt")
+    restored = load(path)
+    assert restored.config == model.config
+    a, b = model(x, patch, slot, n_patches), restored(x, patch, slot, n_patches)
+    assert torch.equal(a.logits, b.logits) and torch.equal(a.attention, b.attention)
+    assert [p.name for p in path.parent.iterdir()] == ["model.pt"]  # no temporary left behind
+
+
+def test_load_rejects_foreign_files(tmp_path):
+    path = tmp_path / "other.pt"
+    torch.save({"weights": torch.zeros(2)}, path)
+    with pytest.raises(ValueError, match="not a model"):
+        load(path)
