@@ -71,6 +71,7 @@ from anseg.mesh import Mesh, MeshError
 
 MODES = ("nonuniform", "uniform", "random")
 MIN_FACE_QUALITY = 1e-3
+_NO_BOUNDARY_RINGS = 1e6  # rings assigned when a mesh has a single label
 """A collapse may not push a face's ``2 * area / longest_edge**2`` below this
 (equilateral: 0.87), unless the face was already worse before the collapse."""
 
@@ -834,3 +835,22 @@ def upsample_through(records: Sequence[CollapseRecord], coarse_probs) -> np.ndar
     for record in reversed(_as_list(records)):
         probs = upsample(record, probs)
     return probs
+
+
+def rings_to_other_label(mesh, labels) -> np.ndarray:
+    """(F,) face-graph distance, in rings, from each face to the nearest face with another label (1 = adjacent).
+
+    Faces near label boundaries are where a collapse loses labels: the oracle score
+    of the round-trip study and the attention target of training both derive from this.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    pairs = mesh.face_adjacency
+    differ = labels[pairs[:, 0]] != labels[pairs[:, 1]]
+    sources = np.unique(pairs[differ])
+    if len(sources) == 0:
+        return np.full(mesh.n_faces, _NO_BOUNDARY_RINGS)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(mesh.n_faces,) * 2)
+    # faces touching another label are 1 ring away from it; each further ring adds one
+    return 1.0 + dijkstra(graph, directed=False, indices=sources, unweighted=True, min_only=True)

@@ -28,7 +28,10 @@ Choices, and why:
   not differentiable), and the faces that make up most of a token get most of its
   attention. Face attention = token mass x face share x F, so its **mean over the real
   faces of a mesh is exactly 1** and values compare across meshes of different size.
-  It is computed without gradient: it guides the collapse and is no training target.
+  It is computed without gradient, except with ``attention_grad=True``: training
+  may then supervise it (anseg.train teaches it to mark label boundaries, where the
+  collapse must keep detail), through the dense (heads x T x T) matrix, which is
+  affordable at training sizes (200 MB at 3.5K tokens) and never used for inference.
 - **Positional signal**: off by default (``position_frequencies = 0``). The sequence
   is ordered by K-means cluster, and cluster numbers are arbitrary from mesh to mesh, so
   absolute position in the sequence carries no meaning that transfers; it is exposed
@@ -224,13 +227,15 @@ class AttentionSegmenter(nn.Module):
         slot_of_face: torch.Tensor,
         n_patches: int,
         need_attention: bool = True,
+        attention_grad: bool = False,
     ) -> Output:
         """Logits (F, C) and attention (F,) of one mesh's faces.
 
         ``x``: (F, in_features) features; ``patch_of_face``/``slot_of_face``: (F,) integer
         tensors or arrays, the position of every face in the (n_patches, patch_size) grid. ``need_attention=False``
         skips the received-attention pass (as costly as one attention layer) when only
-        the logits are wanted, e.g. in most training steps.
+        the logits are wanted, e.g. in most training steps; ``attention_grad=True`` returns
+        attention with its gradient (see the module docstring).
         """
         if x.dim() != 2 or x.shape[1] != self.config.in_features:
             raise ValueError(f"x must be (faces, {self.config.in_features}), got {tuple(x.shape)}")
@@ -238,13 +243,13 @@ class AttentionSegmenter(nn.Module):
         patch_of_face = torch.as_tensor(patch_of_face, device=x.device)
         slot_of_face = torch.as_tensor(slot_of_face, device=x.device)
         grid, mask = to_patches(x, patch_of_face, slot_of_face, n_patches, self.config.patch_size)
-        logits, attention = self.forward_patches(grid, mask, need_attention)
+        logits, attention = self.forward_patches(grid, mask, need_attention, attention_grad)
         patch_of_face, slot_of_face = patch_of_face.long(), slot_of_face.long()
         face_attention = attention[patch_of_face, slot_of_face] if attention is not None else None
         return Output(logits[patch_of_face, slot_of_face], face_attention)
 
     def forward_patches(
-        self, grid: torch.Tensor, mask: torch.Tensor, need_attention: bool = True
+        self, grid: torch.Tensor, mask: torch.Tensor, need_attention: bool = True, attention_grad: bool = False
     ) -> tuple[torch.Tensor, torch.Tensor | None]:
         """The network on a (T, P, in_features) grid with its (T, P) mask of real slots.
 
@@ -274,6 +279,10 @@ class AttentionSegmenter(nn.Module):
             h, q, k = block(h)
         context = self.norm_out(h).unsqueeze(1).expand(-1, patch_size, -1)
         logits = self.head(torch.cat([embedded, context], dim=-1))
+        if attention_grad:
+            scores = torch.matmul(q, k.transpose(1, 2)) / math.sqrt(q.shape[-1])
+            mass = torch.softmax(scores, dim=-1).mean(dim=(0, 1))
+            return logits, mass.unsqueeze(1) * share * mask.sum()
         if not need_attention:
             return logits, None
         with torch.no_grad():

@@ -28,27 +28,12 @@ import time
 import warnings
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from anseg import datasets
-from anseg.collapse import CollapseWarning, downsample, one_hot, pool_labels, upsample_through
+from anseg.collapse import CollapseWarning, downsample, one_hot, pool_labels, rings_to_other_label, upsample_through
 from anseg.metrics import pooled_accuracy
 
 MODES = ("nonuniform", "uniform", "random")
-NO_BOUNDARY_RINGS = 1e6  # rings assigned when a mesh has a single label
-
-
-def rings_to_other_label(mesh, labels) -> np.ndarray:
-    """(F,) face-graph distance, in rings, from each face to the nearest face with another label (1 = adjacent)."""
-    pairs = mesh.face_adjacency
-    differ = labels[pairs[:, 0]] != labels[pairs[:, 1]]
-    sources = np.unique(pairs[differ])
-    if len(sources) == 0:
-        return np.full(mesh.n_faces, NO_BOUNDARY_RINGS)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(mesh.n_faces,) * 2)
-    # faces touching another label are 1 ring away from it; each further ring adds one
-    return 1.0 + dijkstra(graph, directed=False, indices=sources, unweighted=True, min_only=True)
 
 
 def oracle_scores(mesh, labels, rng) -> np.ndarray:

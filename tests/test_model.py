@@ -48,6 +48,16 @@ def test_shapes_and_attention_normalisation(problem):
     assert model(x, patch, slot, n_patches, need_attention=False).attention is None
 
 
+def test_attention_with_gradient_matches_and_trains(problem):
+    model, x, patch, slot, n_patches = problem
+    plain = model(x, patch, slot, n_patches).attention
+    graded = model(x, patch, slot, n_patches, attention_grad=True).attention
+    assert torch.allclose(plain, graded, rtol=1e-4, atol=1e-6)
+    graded[:10].sum().backward()
+    assert model.share_score.weight.grad.abs().sum() > 0
+    assert model.blocks[-1].attention.qkv.weight.grad.abs().sum() > 0
+
+
 def test_token_attention_is_spread_by_the_learned_share():
     """Inside a token, face attention is proportional to exp(share score): ratios match, faces differ."""
     torch.manual_seed(1)
