@@ -1,0 +1,649 @@
+"""The embedded synthetic data set: seeded, labelled part-based shapes, no download.
+
+Every stage and notebook can run on it in minutes on a small CPU. Two
+categories, each a family of closed manifold meshes of about 2,000-5,000 faces
+(a fraction of a second each):
+
+``figure``
+    Articulated figures: an ellipsoid torso, a neck and head, tapered tubes for
+    upper and lower arms and legs, ellipsoid hands and tube feet. Proportions
+    (limb lengths and thicknesses, shoulder and hip width, head size) and pose
+    (shoulder, elbow, hip and knee angles, head tilt) vary per shape; poses in
+    which limbs would touch are drawn again, so every figure is one sphere-like
+    surface (genus 0). Labels: head (with the neck), torso, upper_arm,
+    lower_arm, hand, upper_leg, lower_leg, foot; left and right share a label,
+    as in PSB Human.
+``vessel``
+    Vases and jugs: a profile curve (foot, bulging body, shoulder, neck, flared
+    lip with a shallow opening) turned about the vertical axis, with one handle
+    or two opposite ones (tubes along curves from the body to the neck).
+    A vessel with ``n`` handles has genus ``n``. Labels: base, body, neck, lip
+    (the rim and the opening), handle.
+
+How a shape becomes a mesh: the solid is an implicit function, the smooth
+union of its parts' distance functions. Marching cubes (libigl) extracts its
+surface on a regular grid that a smooth map has contracted about the part
+junctions (joints; the rings where profile parts meet and the handle roots;
+also the vessel's thin rim), so that edges there are up to ``_REFINE`` (4)
+times shorter than far from them, as on real models. A few steps of
+tangential smoothing, weighted to keep that grading and each projected back
+onto the surface, turn the marching-cubes slivers into well-shaped triangles
+(hardly any angle below 10 degrees). A face takes the label of the part whose
+own distance function is smallest at its centroid. Each shape is checked
+(valid, closed, the expected genus, every label present) and drawn again in
+the rare case that it fails.
+
+Seeds and splits: shape ``i`` of a category is drawn from
+``numpy.random.default_rng([seed, category_number, i])`` (category numbers
+follow ``CATEGORIES``), so it does not depend on how many shapes are asked
+for. ``n_shapes`` (default 16) shapes per category are named
+``figure_000``, ``figure_001``, ... There are ``N_SPLITS`` (4) fixed splits
+forming a 4-fold partition: split ``k`` tests the shapes whose index is ``k``
+modulo 4 (4 of 16) and trains on the others (12 of 16), so the four test sets
+are disjoint and cover every shape once. The label sets differ by category,
+so train and evaluate per category; ``category=None`` returns both categories
+(names carry the category) for looking, not for training.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from anseg.datasets import SPLITS, DatasetError, LabeledMesh, progress_bar
+from anseg.mesh import Mesh, MeshError, repair
+
+CATEGORIES = ("figure", "vessel")
+LABEL_NAMES = {
+    "figure": ["head", "torso", "upper_arm", "lower_arm", "hand", "upper_leg", "lower_leg", "foot"],
+    "vessel": ["base", "body", "neck", "lip", "handle"],
+}
+N_SHAPES = 16
+N_SPLITS = 4
+DEFAULT_SEED = 0
+FACE_RANGE = (2500, 4500)  # each shape aims at a face count drawn from this range
+
+# Marching-cubes faces per grid cell area on the surface, as measured (the refined-area
+# estimate counts rings as if they refined both ways, so vessels get about 10 % fewer).
+_FACES_PER_CELL = 0.7
+# How much finer the tessellation is at a junction centre than far from junctions (edge length ratio).
+_REFINE = 4.0
+_PULL = 1.0 - 1.0 / _REFINE  # the grid contraction's strength at a junction centre
+_RELAX_STEPS = 5
+_RELAX_RATE = 0.5
+_MAX_DRAWS = 40
+
+
+class SyntheticShapeError(RuntimeError):
+    """The generator found no valid shape for a seed within its allowed number of draws."""
+
+
+# ---------------------------------------------------------------- parts
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+@dataclass
+class _Tube:
+    """A tapered capsule from ``a`` (radius ``ra``) to ``b`` (radius ``rb``)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    ra: float
+    rb: float
+    label: int
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        ab = self.b - self.a
+        t = np.clip(((p - self.a) @ ab) / (ab @ ab), 0.0, 1.0)
+        return np.linalg.norm(p - (self.a + t[:, None] * ab), axis=1) - (self.ra + t * (self.rb - self.ra))
+
+    def labels(self, p: np.ndarray) -> np.ndarray:
+        return np.full(len(p), self.label)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        r = max(self.ra, self.rb)
+        return np.minimum(self.a, self.b) - r, np.maximum(self.a, self.b) + r
+
+    def skeleton(self) -> tuple[np.ndarray, np.ndarray]:
+        """Sample points on the axis and the radius there; the root end (in the junction with the parent) is left out."""
+        t = np.linspace(0.3, 1.0, 8)
+        return self.a + t[:, None] * (self.b - self.a), self.ra + t * (self.rb - self.ra)
+
+
+@dataclass
+class _Ellipsoid:
+    """An ellipsoid with semi-axes ``radii`` along the columns of ``frame``."""
+
+    centre: np.ndarray
+    radii: np.ndarray
+    label: int
+    frame: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        # a close bound on the Euclidean distance, exact on the surface
+        q = (p - self.centre) @ self.frame
+        k0 = np.linalg.norm(q / self.radii, axis=1)
+        k1 = np.linalg.norm(q / self.radii**2, axis=1)
+        return k0 * (k0 - 1.0) / np.maximum(k1, 1e-12)
+
+    def labels(self, p: np.ndarray) -> np.ndarray:
+        return np.full(len(p), self.label)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.centre - self.radii.max(), self.centre + self.radii.max()
+
+    def skeleton(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.centre[None], np.array([self.radii.min()])
+
+
+@dataclass
+class _Revolved:
+    """The solid swept by a (rho, z) profile polyline turning about the z axis.
+
+    The polyline runs counter-clockwise round the solid's half-section from a
+    point on the axis to another point on the axis (the axis closes it but is
+    no surface). ``segment_labels`` labels each segment; a point takes the
+    label of the nearest one.
+    """
+
+    profile: np.ndarray
+    segment_labels: np.ndarray
+
+    def __post_init__(self):
+        from scipy.spatial import cKDTree
+
+        tangent = np.diff(self.profile, axis=0)
+        self._segment_normals = _unit(np.stack([tangent[:, 1], -tangent[:, 0]], axis=1))
+        # pseudo-normals at the vertices give the right inside/outside sign when the nearest point is a vertex
+        padded = np.concatenate([self._segment_normals[:1], self._segment_normals, self._segment_normals[-1:]])
+        self._vertex_normals = _unit(padded[:-1] + padded[1:])
+        self._tree = cKDTree(self.profile)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        r = self.profile[:, 0].max()
+        return np.array([-r, -r, self.profile[:, 1].min()]), np.array([r, r, self.profile[:, 1].max()])
+
+    def _nearest(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance in the half-section, and the nearest segment, of each point."""
+        q = np.stack([np.hypot(p[:, 0], p[:, 1]), p[:, 2]], axis=1)
+        # the two segments at the nearest vertex hold a locally nearest point, where the sign test is right;
+        # on the finely resampled profile its distance is the true one near the surface
+        _, vertex = self._tree.query(q)
+        candidates = np.clip(np.stack([vertex - 1, vertex], axis=1), 0, len(self.profile) - 2)
+        a = self.profile[candidates]
+        ab = self.profile[candidates + 1] - a
+        rel = q[:, None, :] - a
+        t = np.clip((rel * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
+        offset = rel - t[..., None] * ab
+        dist = np.linalg.norm(offset, axis=-1)
+        rows = np.arange(len(q))
+        pick = dist.argmin(axis=1)
+        segment, t, offset = candidates[rows, pick], t[rows, pick], offset[rows, pick]
+        normal = np.where(
+            (t <= 0.0)[:, None], self._vertex_normals[segment],
+            np.where((t >= 1.0)[:, None], self._vertex_normals[segment + 1], self._segment_normals[segment]),
+        )
+        sign = np.where((offset * normal).sum(axis=1) < 0, -1.0, 1.0)
+        return sign * dist[rows, pick], segment
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        return self._nearest(p)[0]
+
+    def labels(self, p: np.ndarray) -> np.ndarray:
+        return self.segment_labels[self._nearest(p)[1]]
+
+
+@dataclass
+class _TubePath:
+    """A tube of radius ``radius`` along the polyline ``path`` (P, 3), with round ends."""
+
+    path: np.ndarray
+    radius: float
+    label: int
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        a, ab = self.path[:-1], np.diff(self.path, axis=0)
+        rel = p[:, None, :] - a[None]
+        t = np.clip((rel * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
+        return np.linalg.norm(rel - t[..., None] * ab, axis=-1).min(axis=1) - self.radius
+
+    def labels(self, p: np.ndarray) -> np.ndarray:
+        return np.full(len(p), self.label)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.path.min(axis=0) - self.radius, self.path.max(axis=0) + self.radius
+
+
+def _smooth_min(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
+    """Polynomial smooth minimum: a fillet of size about ``k``; equals min(a, b) where they differ by more than k."""
+    h = np.maximum(k - np.abs(a - b), 0.0) / k
+    return np.minimum(a, b) - 0.25 * k * h * h
+
+
+@dataclass
+class _Junction:
+    """Where the tessellation is refined (where parts meet): a point, or a horizontal ring about the z axis.
+
+    ``reach`` is the distance over which the refinement fades; ``ring_radius`` > 0 makes a ring.
+    """
+
+    centre: np.ndarray
+    reach: float
+    ring_radius: float = 0.0
+
+    def nearest(self, p: np.ndarray) -> np.ndarray:
+        if self.ring_radius == 0.0:
+            return np.broadcast_to(self.centre, p.shape)
+        scale = self.ring_radius / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9)
+        return np.stack([p[:, 0] * scale, p[:, 1] * scale, np.full(len(p), self.centre[2])], axis=1)
+
+
+@dataclass
+class _Shape:
+    """A shape before meshing: parts in blend order, the fillet size of each later part, junctions, genus."""
+
+    parts: list
+    blends: list[float]
+    junctions: list[_Junction]
+    genus: int
+
+    def field(self, p: np.ndarray) -> np.ndarray:
+        """The implicit function: negative inside, roughly the distance to the surface."""
+        value = self.parts[0].distance(p)
+        for part, k in zip(self.parts[1:], self.blends):
+            lower, upper = part.bounds()
+            box_gap = np.linalg.norm(np.maximum(np.maximum(lower - p, p - upper), 0.0), axis=1)
+            # a part farther than value + k leaves the smooth minimum as it is: skip those points
+            near = np.flatnonzero(box_gap < value + k)
+            value[near] = _smooth_min(value[near], part.distance(p[near]), k)
+        return value
+
+    def labels(self, p: np.ndarray) -> np.ndarray:
+        """The label of the part nearest to each point."""
+        nearest = np.stack([part.distance(p) for part in self.parts]).argmin(axis=0)
+        out = np.empty(len(p), dtype=np.int64)
+        for i, part in enumerate(self.parts):
+            chosen = nearest == i
+            if chosen.any():
+                out[chosen] = part.labels(p[chosen])
+        return out
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lows, highs = zip(*(part.bounds() for part in self.parts))
+        return np.min(lows, axis=0), np.max(highs, axis=0)
+
+
+# ---------------------------------------------------------------- figure
+def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation of ``v`` about the unit ``axis`` (Rodrigues)."""
+    return v * np.cos(angle) + np.cross(axis, v) * np.sin(angle) + axis * (axis @ v) * (1 - np.cos(angle))
+
+
+def _bend(direction: np.ndarray, towards: np.ndarray, angle: float) -> np.ndarray:
+    """``direction`` turned by ``angle`` in the plane it spans with ``towards``."""
+    perpendicular = towards - (towards @ direction) * direction
+    return np.cos(angle) * direction + np.sin(angle) * _unit(perpendicular)
+
+
+def _figure(rng: np.random.Generator) -> _Shape | None:
+    """Draw proportions and a pose; None when two parts that must stay apart come too close."""
+    lab = {name: i for i, name in enumerate(LABEL_NAMES["figure"])}
+    uniform = lambda lo, hi: float(rng.uniform(lo, hi))  # noqa: E731
+    angle = lambda lo, hi: np.deg2rad(uniform(lo, hi))  # noqa: E731
+    up, forward, sideways = np.eye(3)[2], np.eye(3)[1], np.eye(3)[0]
+
+    thigh, shin = uniform(0.38, 0.48), uniform(0.36, 0.46)
+    upper_arm, forearm = uniform(0.26, 0.34), uniform(0.23, 0.3)
+    arm_r, thigh_r, head_r = uniform(0.04, 0.055), uniform(0.055, 0.075), uniform(0.09, 0.13)
+    hip_offset = thigh_r * uniform(1.15, 1.4)
+    torso_radii = np.array([max(uniform(0.14, 0.19), hip_offset / 0.7), uniform(0.08, 0.12), uniform(0.3, 0.38)])
+    hip_z = thigh + shin + 0.06
+    torso_c = np.array([0.0, 0.0, hip_z + 0.55 * torso_radii[2]])
+
+    def torso_half_width(z: float) -> float:
+        return torso_radii[0] * np.sqrt(max(1.0 - ((z - torso_c[2]) / torso_radii[2]) ** 2, 0.0))
+
+    neck_base = torso_c + np.array([0.0, 0.0, 0.9 * torso_radii[2]])
+    neck_dir = _unit(up + np.array([uniform(-0.25, 0.25), uniform(-0.15, 0.3), 0.0]))
+    head_c = neck_base + neck_dir * (0.1 + head_r)
+    neck = _Tube(neck_base - 0.04 * neck_dir, head_c, 0.05 + 0.2 * head_r, 0.5 * head_r, lab["head"])
+    head = _Ellipsoid(head_c, head_r * np.array([0.9, 1.0, 1.15]), lab["head"])
+    parts = [_Ellipsoid(torso_c, torso_radii, lab["torso"]), neck, head]
+    blends = [0.04, 0.03]
+    touching = [(0, 1), (1, 2)]
+    junctions = [_Junction(neck_base, 2.5 * neck.ra)]
+
+    shoulder_z = torso_c[2] + 0.62 * torso_radii[2]
+    for side in (-1.0, 1.0):
+        outward = side * sideways
+        # arm: abduction from hanging down, a forward or backward swing, then the elbow
+        shoulder = np.array([side * 0.8 * torso_half_width(shoulder_z), 0.0, shoulder_z])
+        d = _rotate(_bend(-up, outward, angle(30, 95)), sideways, angle(-35, 60))
+        elbow = shoulder + upper_arm * d
+        bend_towards = _rotate(forward, d, angle(-40, 40)) if abs(d @ forward) < 0.95 else up
+        f = _bend(d, bend_towards, angle(0, 110))
+        wrist = elbow + forearm * f
+        hand_len = uniform(0.08, 0.11)
+        palm = _unit(np.cross(f, forward if abs(f @ forward) < 0.95 else up))
+        hand_frame = np.stack([f, palm, np.cross(f, palm)], axis=1)
+        first = len(parts)
+        parts += [
+            _Tube(shoulder, elbow, arm_r * 1.15, arm_r, lab["upper_arm"]),
+            _Tube(elbow, wrist, arm_r, 0.85 * arm_r, lab["lower_arm"]),
+            _Ellipsoid(wrist + 0.8 * hand_len * f, hand_len * np.array([1.0, 0.6, 0.4]), lab["hand"], hand_frame),
+        ]
+        blends += [0.06, 0.5 * arm_r, 0.4 * arm_r]
+        touching += [(0, first), (first, first + 1), (first + 1, first + 2)]
+        junctions += [_Junction(shoulder, 3.0 * arm_r), _Junction(elbow, 2.5 * arm_r), _Junction(wrist, 2.5 * arm_r)]
+
+        # leg: spread and swing at the hip, the knee bends backwards, the foot points forwards
+        hip = np.array([side * hip_offset, 0.0, hip_z])
+        d = _rotate(_bend(-up, outward, angle(3, 22)), sideways, angle(-25, 65))
+        knee = hip + thigh * d
+        s = _bend(d, -forward, angle(0, 95))
+        ankle = knee + shin * s
+        toe = ankle + uniform(0.17, 0.24) * _bend(s, forward, angle(75, 100))
+        first = len(parts)
+        parts += [
+            _Tube(hip, knee, thigh_r, 0.8 * thigh_r, lab["upper_leg"]),
+            _Tube(knee, ankle, 0.8 * thigh_r, 0.6 * thigh_r, lab["lower_leg"]),
+            _Tube(ankle, toe, 0.65 * thigh_r, 0.55 * thigh_r, lab["foot"]),
+        ]
+        blends += [0.06, 0.4 * thigh_r, 0.3 * thigh_r]
+        touching += [(0, first), (first, first + 1), (first + 1, first + 2)]
+        junctions += [_Junction(hip, 2.5 * thigh_r), _Junction(knee, 2.5 * thigh_r), _Junction(ankle, 2.5 * thigh_r)]
+    if not _parts_apart(parts, touching, gap=0.04):
+        return None
+    return _Shape(parts, blends, junctions, genus=0)
+
+
+def _parts_apart(parts: list, touching: list[tuple[int, int]], gap: float) -> bool:
+    """Whether every pair of parts not allowed to touch keeps ``gap`` between their surfaces (checked along skeletons)."""
+    allowed = set(touching) | {(j, i) for i, j in touching}
+    for j, other in enumerate(parts):
+        points, radii = other.skeleton()
+        for i, part in enumerate(parts):
+            if i != j and (i, j) not in allowed and (part.distance(points) < radii + gap).any():
+                return False
+    return True
+
+
+# ---------------------------------------------------------------- vessel
+def _vessel(rng: np.random.Generator) -> _Shape | None:
+    """Draw a profile and one or two handles; None when a handle would be too short or cut into the opening."""
+    from scipy.interpolate import PchipInterpolator
+
+    lab = {name: i for i, name in enumerate(LABEL_NAMES["vessel"])}
+    uniform = lambda lo, hi: float(rng.uniform(lo, hi))  # noqa: E731
+
+    height = uniform(1.6, 2.2)
+    foot_top = uniform(0.06, 0.12) * height
+    body_max = foot_top + uniform(0.2, 0.35) * height
+    neck_low = uniform(0.6, 0.7) * height
+    lip_low = uniform(0.85, 0.92) * height
+    r_body = uniform(0.45, 0.7)
+    r_neck = uniform(0.35, 0.55) * r_body
+    r_foot = uniform(0.5, 0.8) * r_body
+    r_lip = r_neck * uniform(1.15, 1.5)
+    knots_z = [0.0, foot_top, body_max, 0.5 * (body_max + neck_low), neck_low, 0.5 * (neck_low + lip_low), lip_low, height]
+    knots_r = [r_foot, uniform(0.7, 0.9) * r_foot, r_body, uniform(0.7, 0.9) * r_body, r_neck * uniform(1.0, 1.1), r_neck,
+               r_neck * uniform(0.95, 1.05), r_lip]  # fmt: skip
+    radius_at = PchipInterpolator(knots_z, knots_r)
+
+    # handles: tubes along curves from the upper body to the neck, bulging outwards
+    tube = min(uniform(0.07, 0.095), 0.4 * r_neck)
+    z1 = uniform(body_max, 0.5 * (body_max + neck_low) + 0.05)
+    z2 = uniform(neck_low + 0.05, lip_low - 0.05)
+    n_handles = int(rng.integers(1, 3))
+    first_angle = uniform(0, 2 * np.pi)
+    if z2 - z1 < 5.0 * tube:  # the hole would be too small
+        return None
+
+    # profile: flat bottom, rounded base rim, outer wall, a round lip of radius lip_r, then the
+    # opening: a round-bottomed cup with a wall of 2 lip_r that stops above the handle roots
+    lip_r = min(uniform(0.06, 0.09), 0.3 * r_neck)
+    rim = height - lip_r
+    cup_bottom = max(rim - uniform(0.1, 0.25) * height, z2 + 2.0 * tube)
+    if cup_bottom > rim - 0.05:
+        return None
+    corner = 0.06
+    z = np.linspace(corner, rim, 60)
+    outer = np.stack([radius_at(z), z], axis=1)
+    base_angles = np.linspace(-np.pi / 2, 0.0, 8)[:-1]
+    base = np.array([radius_at(corner) - corner, corner]) + corner * np.stack([np.cos(base_angles), np.sin(base_angles)], axis=1)
+    lip_angles = np.linspace(0.0, np.pi, 11)[1:]
+    lip = np.array([radius_at(rim) - lip_r, rim]) + lip_r * np.stack([np.cos(lip_angles), np.sin(lip_angles)], axis=1)
+    t = np.linspace(0.0, 1.0, 25)[1:]
+    cup_z = rim - (rim - cup_bottom) * t
+    cup = np.stack([(radius_at(cup_z) - 2 * lip_r) * np.sqrt(1 - t**4), cup_z], axis=1)
+    profile = np.concatenate([[[0.0, 0.0]], base, outer, lip, cup])
+    midpoint_z = 0.5 * (profile[:-1, 1] + profile[1:, 1])
+    segment_labels = np.select(
+        [midpoint_z < foot_top, midpoint_z < neck_low, midpoint_z < lip_low], [lab["base"], lab["body"], lab["neck"]], lab["lip"]
+    )
+    segment_labels[len(base) + len(outer) :] = lab["lip"]  # over the rim and into the opening
+    profile, segment_labels = _resample(profile, segment_labels, spacing=0.01)
+    parts = [_Revolved(profile, segment_labels)]
+    blends = []
+    junctions = [_Junction(np.array([0.0, 0.0, zj]), 0.08 * height, float(radius_at(zj))) for zj in (foot_top, neck_low, lip_low)]
+    # not a junction, but a thin rounded feature that real models tessellate finely too
+    junctions.append(_Junction(np.array([0.0, 0.0, rim]), 2.5 * lip_r, float(radius_at(rim)) - lip_r))
+
+    # a handle leaves the body and enters the neck along the wall's normal (square to the axis
+    # on the neck, so it cannot reach the opening) and sweeps out far enough to clear the wall
+    root_depth = 1.5 * tube
+    roots = np.array([[float(radius_at(z)) - root_depth, z] for z in (z1, z2)])
+    slopes = radius_at.derivative()([z1, z2])
+    normals = _unit(np.stack([np.ones(2), -slopes], axis=1))
+    between = np.linspace(z1, z2, 20)
+    bulge = max((radius_at(between) - np.interp(between, [z1, z2], roots[:, 0])).max(), 0.0)
+    # a cubic Bezier curve reaches about 3/4 of the way to its middle control points
+    reach_out = (bulge + 2.5 * tube + uniform(0.08, 0.25)) / 0.75
+    controls = np.array([roots[0], roots[0] + reach_out * normals[0], roots[1] + reach_out * normals[1], roots[1]])
+    t = np.linspace(0.0, 1.0, 17)[:, None]
+    bernstein = np.concatenate([(1 - t) ** 3, 3 * (1 - t) ** 2 * t, 3 * (1 - t) * t**2, t**3], axis=1)
+    curve = bernstein @ controls
+    for turn in first_angle + np.pi * np.arange(n_handles):
+        outward = np.array([np.cos(turn), np.sin(turn), 0.0])
+        path = curve[:, :1] * outward + curve[:, 1:] * np.array([0.0, 0.0, 1.0])
+        parts.append(_TubePath(path, tube, lab["handle"]))
+        blends.append(0.6 * tube)
+        junctions += [_Junction(path[i] + root_depth * outward, 3.0 * tube) for i in (0, -1)]
+    return _Shape(parts, blends, junctions, genus=n_handles)
+
+
+def _resample(polyline: np.ndarray, segment_labels: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Split every segment into pieces no longer than ``spacing``, keeping their labels."""
+    lengths = np.linalg.norm(np.diff(polyline, axis=0), axis=1)
+    pieces = np.maximum(np.ceil(lengths / spacing).astype(int), 1)
+    t = np.concatenate([np.arange(n) / n for n in pieces])
+    start = np.repeat(np.arange(len(pieces)), pieces)
+    points = polyline[start] + t[:, None] * (polyline[start + 1] - polyline[start])
+    return np.concatenate([points, polyline[-1:]]), segment_labels[start]
+
+
+_BUILDERS = {"figure": _figure, "vessel": _vessel}
+
+
+# ---------------------------------------------------------------- meshing
+def _junction_weights(points: np.ndarray, junctions: list[_Junction]) -> tuple[np.ndarray, np.ndarray]:
+    """For each junction, the offset of every point from it (J, N, 3) and a Gaussian weight of that offset (J, N)."""
+    offsets = np.stack([points - junction.nearest(points) for junction in junctions])
+    reach = np.array([junction.reach for junction in junctions])[:, None]
+    return offsets, np.exp(-(offsets * offsets).sum(axis=-1) / reach**2)
+
+
+def _contract(points: np.ndarray, junctions: list[_Junction]) -> np.ndarray:
+    """Pull points towards the junctions, so that a regular grid so mapped has cells _REFINE times finer at a junction.
+
+    A single junction's map is one-to-one (its pull is below 1).
+    """
+    offsets, weights = _junction_weights(points, junctions)
+    return points - _PULL * (weights[..., None] * offsets).sum(axis=0)
+
+
+def _edge_density(points: np.ndarray, junctions: list[_Junction]) -> np.ndarray:
+    """Edges per unit length that the contracted grid gives, relative to far from every junction (_REFINE at a junction)."""
+    return 1.0 / (1.0 - _PULL * np.minimum(_junction_weights(points, junctions)[1].sum(axis=0), 1.0))
+
+
+def _refined_area(shape: _Shape, lower: np.ndarray, upper: np.ndarray, n: int = 32) -> float:
+    """The surface integral of the squared edge density: the area in units of far-field cells.
+
+    Measured on a coarse grid as the volume of a thin shell about the zero set over its thickness.
+    """
+    axes = [np.linspace(lo, hi, n) for lo, hi in zip(lower, upper)]
+    spacing = (upper - lower) / (n - 1)
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    thickness = float(spacing.mean())
+    shell = points[np.abs(shape.field(points)) < 0.5 * thickness]
+    return float((_edge_density(shell, shape.junctions) ** 2).sum() * np.prod(spacing) / thickness)
+
+
+def _largest_component(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rows, cols = np.r_[faces[:, 0], faces[:, 0]], np.r_[faces[:, 1], faces[:, 2]]
+    _, component = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices,) * 2), directed=False)
+    face_component = component[faces[:, 0]]
+    return faces[face_component == np.bincount(face_component).argmax()]
+
+
+def _project(shape: _Shape, points: np.ndarray) -> np.ndarray:
+    """One Newton step of each point onto the zero set, along the field's (finite-difference) gradient."""
+    step = 1e-5
+    value = shape.field(points)
+    gradient = np.stack([(shape.field(points + offset) - value) / step for offset in np.eye(3) * step], axis=1)
+    return points - (value / np.maximum((gradient * gradient).sum(axis=1), 1e-12))[:, None] * gradient
+
+
+def _relax(mesh: Mesh, shape: _Shape, steps: int) -> Mesh:
+    """Even out the marching-cubes slivers while keeping the junction refinement.
+
+    Each step moves every vertex, in its tangent plane, towards the average of
+    its neighbours weighted by the squared target edge density (so that edges
+    tend to the local target length rather than to one length), then projects
+    it back onto the surface.
+    """
+    from scipy.sparse import coo_matrix
+
+    edges = mesh.edges
+    rows, cols = np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]]
+    incidence = coo_matrix((np.ones(3 * mesh.n_faces), (mesh.faces.ravel(), np.repeat(np.arange(mesh.n_faces), 3)))).tocsr()
+    vertices = mesh.vertices
+    for _ in range(steps):
+        density = _edge_density(vertices, shape.junctions)
+        weights = coo_matrix((density[rows] * density[cols], (rows, cols)), shape=(len(vertices),) * 2).tocsr()
+        move = (weights @ vertices) / np.asarray(weights.sum(axis=1)) - vertices
+        normals = _unit(incidence @ Mesh(vertices, mesh.faces).face_normals + 1e-12)
+        move -= (move * normals).sum(axis=1, keepdims=True) * normals
+        vertices = _project(shape, vertices + _RELAX_RATE * move)
+    return Mesh(vertices, mesh.faces)
+
+
+def _mesh_shape(shape: _Shape, n_faces: int) -> Mesh:
+    """Marching cubes on a grid contracted about the junctions, sized for about ``n_faces`` away from them; then relaxed."""
+    import igl
+
+    lower, upper = shape.bounds()
+    cell = np.sqrt(_FACES_PER_CELL * _refined_area(shape, lower, upper) / n_faces)
+    # the contraction moves grid points by less than 0.43 reach per junction: pad so that the surface stays inside
+    pad = 3 * cell + max(junction.reach for junction in shape.junctions)
+    counts = np.ceil((upper - lower + 2 * pad) / cell).astype(int) + 1
+    axes = [lo - pad + np.arange(n) * cell for lo, n in zip(lower, counts)]
+    zz, yy, xx = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")  # x fastest, as libigl wants
+    grid = _contract(np.stack([xx.ravel(), yy.ravel(), zz.ravel()], axis=1), shape.junctions)
+    values = shape.field(grid)
+    # a grid value of exactly zero would make coincident vertices
+    values[np.abs(values) < 1e-9 * cell] = 1e-9 * cell
+    vertices, faces, _ = igl.marching_cubes(values, grid, int(counts[0]), int(counts[1]), int(counts[2]), 0.0)
+    mesh, _ = repair(Mesh(vertices, _largest_component(faces, len(vertices))))
+    mesh = _relax(mesh, shape, _RELAX_STEPS)
+    if _signed_volume(mesh) < 0:
+        mesh = Mesh(mesh.vertices, mesh.faces[:, ::-1])
+    return mesh
+
+
+def _signed_volume(mesh: Mesh) -> float:
+    v = mesh.vertices[mesh.faces]
+    return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6.0)
+
+
+def _problem(mesh: Mesh, labels: np.ndarray, shape: _Shape, n_labels: int) -> str | None:
+    """Why a generated mesh is unusable, or None."""
+    try:
+        mesh.validate()
+    except MeshError as exc:
+        return str(exc)
+    if mesh.boundary_loop_count:
+        return f"{mesh.boundary_loop_count} boundary loops"
+    if mesh.euler_characteristic != 2 - 2 * shape.genus:
+        return f"Euler characteristic {mesh.euler_characteristic}, expected {2 - 2 * shape.genus}"
+    if len(np.unique(labels)) != n_labels:
+        return f"only {len(np.unique(labels))} of {n_labels} labels present"
+    return None
+
+
+# ---------------------------------------------------------------- public API
+def generate(category: str, index: int, seed: int = DEFAULT_SEED) -> LabeledMesh:
+    """Shape ``index`` of ``category`` for ``seed``: a closed manifold labelled mesh named like ``figure_007``."""
+    if category not in CATEGORIES:
+        raise DatasetError(f"unknown synthetic category {category!r}; valid: {', '.join(CATEGORIES)}")
+    if index < 0:
+        raise DatasetError(f"shape index must be non-negative, got {index}")
+    rng = np.random.default_rng([seed, CATEGORIES.index(category), index])
+    names = LABEL_NAMES[category]
+    problem = "no shape drawn"
+    for _ in range(_MAX_DRAWS):
+        n_faces = int(rng.integers(FACE_RANGE[0], FACE_RANGE[1] + 1))
+        shape = _BUILDERS[category](rng)
+        if shape is None:
+            continue
+        mesh = _mesh_shape(shape, n_faces)
+        labels = shape.labels(mesh.face_centroids)
+        problem = _problem(mesh, labels, shape, len(names))
+        if problem is None:
+            return LabeledMesh(mesh, labels, list(names), f"{category}_{index:03d}")
+    raise SyntheticShapeError(f"{category} {index} (seed {seed}): no valid shape in {_MAX_DRAWS} draws; last problem: {problem}")
+
+
+def split_indices(n_shapes: int, split: str, split_index: int) -> list[int]:
+    """The shape indices of ``split`` ("train", "test" or "all") in fixed split ``split_index`` (0..N_SPLITS-1)."""
+    if split not in SPLITS:
+        raise DatasetError(f"unknown split {split!r}; valid splits: {', '.join(SPLITS)}")
+    if not 0 <= split_index < N_SPLITS:
+        raise DatasetError(f"synthetic split_index must be in 0..{N_SPLITS - 1}, got {split_index}")
+    if n_shapes < N_SPLITS:
+        raise DatasetError(f"n_shapes must be at least {N_SPLITS} (one test shape per split), got {n_shapes}")
+    everything = range(n_shapes)
+    if split == "all":
+        return list(everything)
+    return [i for i in everything if (i % N_SPLITS == split_index) == (split == "test")]
+
+
+def load(
+    category: str | None = None,
+    split: str = "train",
+    split_index: int = 0,
+    root=None,
+    n_shapes: int = N_SHAPES,
+    seed: int = DEFAULT_SEED,
+    progress: bool = True,
+) -> list[LabeledMesh]:
+    """The synthetic shapes of ``category`` (None: every category) in ``split`` of fixed split ``split_index``.
+
+    ``n_shapes`` shapes per category are split into train and test; ``seed``
+    picks another family of shapes. ``root`` is accepted for a uniform call
+    and ignored: nothing is read from disk. See the module docstring for the
+    shapes, labels, seeds and splits.
+    """
+    categories = CATEGORIES if category is None else (category,)
+    for name in categories:
+        if name not in CATEGORIES:
+            raise DatasetError(f"unknown synthetic category {name!r}; valid: {', '.join(CATEGORIES)}")
+    indices = split_indices(n_shapes, split, split_index)
+    jobs = [(name, i) for name in categories for i in indices]
+    return [generate(name, i, seed) for name, i in progress_bar(jobs, f"synthetic {category or 'all'} {split}", progress)]
