@@ -1,0 +1,178 @@
+"""The ``anseg`` command: train, segment, evaluate, features.
+
+Examples::
+
+    anseg train --dataset psb --category Human --split 0 -o human.pt
+    anseg segment human.pt mesh.off -o mesh_labels.ply
+    anseg evaluate human.pt --dataset psb --category Human --split 0
+    anseg features mesh.off -o mesh_features.npy
+
+Data sets are read from ``--data`` or ``$ANSEG_DATA``. Bad input ends with a
+one-line message and a non-zero exit status, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+EXIT_BAD_INPUT = 2
+
+
+def _add_data_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--dataset", default="psb", help="data set name (default: psb; see anseg.datasets.DATASETS)")
+    parser.add_argument("--category", default=None, help="category, e.g. Human for psb, figure for synthetic")
+    parser.add_argument("--split", type=int, default=0, help="split index (default: 0)")
+    parser.add_argument("--data", default=None, help="folder holding the data sets (default: $ANSEG_DATA)")
+
+
+def _parser() -> argparse.ArgumentParser:
+    from anseg import __version__
+    from anseg.pipeline import MODES, SegmentConfig
+    from anseg.train import TrainConfig
+
+    segment_defaults, train_defaults = SegmentConfig(), TrainConfig()
+    parser = argparse.ArgumentParser(prog="anseg", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
+    parser.add_argument("--version", action="version", version=f"anseg {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    train = commands.add_parser("train", help="train a model on one category", description="Train on a split's training meshes and save the model.")
+    _add_data_options(train)
+    train.add_argument("-o", "--output", required=True, type=Path, help="model file to write (.pt)")
+    train.add_argument("--mode", choices=MODES, default=segment_defaults.mode, help="downsampling mode (default: %(default)s)")
+    train.add_argument("--cycles", type=int, default=segment_defaults.cycles, help="downsampling cycles N (default: %(default)s)")
+    train.add_argument("--ratio", type=float, default=segment_defaults.ratio, help="faces kept per cycle (default: %(default)s)")
+    train.add_argument("--epochs", type=int, default=train_defaults.epochs, help="epochs (default: %(default)s)")
+    train.add_argument("--seed", type=int, default=train_defaults.seed, help="random seed (default: %(default)s)")
+    train.add_argument("--device", default=train_defaults.device, help="cpu, cuda or auto (default: %(default)s)")
+    train.add_argument("--evaluate", action="store_true", help="also evaluate on the split's test meshes")
+
+    segment = commands.add_parser("segment", help="segment a mesh file with a trained model",
+                                  description="Write a face-coloured PLY and a per-face label file (one 0-based label per line).")
+    segment.add_argument("model", type=Path, help="model file written by `anseg train`")
+    segment.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
+    segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
+    segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
+    segment.add_argument("--smooth-weight", type=float, default=None, help="graph-cut weight (default: the model's; 0 turns smoothing off)")
+    segment.add_argument("--repair", action="store_true", help="merge duplicate vertices and drop degenerate faces first; labels follow the input faces")
+
+    evaluate = commands.add_parser("evaluate", help="score a trained model on a split's test meshes",
+                                   description="Eq. 5 on the test meshes: unit-area (primary), raw-area and face readings.")
+    evaluate.add_argument("model", type=Path, help="model file written by `anseg train`")
+    _add_data_options(evaluate)
+    evaluate.add_argument("--json", type=Path, help="also write the scores to this JSON file")
+
+    feats = commands.add_parser("features", help="compute per-face features of a mesh", description="Write the (F, D) per-face feature matrix as .npy.")
+    feats.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
+    feats.add_argument("-o", "--output", required=True, type=Path, help=".npy file to write")
+    feats.add_argument("--groups", default=",".join(segment_defaults.groups), help="comma-separated feature groups (default: %(default)s)")
+    return parser
+
+
+def _load_model(path: Path):
+    from anseg.pipeline import Segmenter
+    from anseg.train import resolve_device
+
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such model file")
+    return Segmenter.load(path, device=resolve_device("auto"))
+
+
+def _train(args) -> None:
+    from anseg import datasets
+    from anseg.pipeline import SegmentConfig
+    from anseg.train import TrainConfig, evaluate, fit
+
+    train_set = datasets.load(args.dataset, category=args.category, split="train", split_index=args.split, root=args.data)
+    config = SegmentConfig(mode=args.mode, cycles=args.cycles, ratio=args.ratio, seed=args.seed)
+    model = fit(train_set, train_set[0].label_names, config, TrainConfig(epochs=args.epochs, seed=args.seed, device=args.device),
+                checkpoint=args.output.with_suffix(".ckpt"))
+    model.save(args.output)
+    args.output.with_suffix(".ckpt").unlink(missing_ok=True)
+    print(f"model written to {args.output}")
+    if args.evaluate:
+        test_set = datasets.load(args.dataset, category=args.category, split="test", split_index=args.split, root=args.data)
+        _print_scores(evaluate(model, test_set))
+
+
+def _print_scores(scores: dict) -> None:
+    for name in ("smoothed", "unsmoothed"):
+        readings = ", ".join(f"{k} {100 * v:.2f} %" for k, v in scores[name].items())
+        print(f"{name:>10}: {readings}")
+
+
+def _segment(args) -> None:
+    from anseg import load_mesh, repair, save_mesh
+    from anseg.pipeline import segment
+    from anseg.viz import label_colors
+
+    model = _load_model(args.model)
+    mesh = load_mesh(args.mesh, validate=not args.repair)
+    n_input_faces, face_map = mesh.n_faces, None
+    if args.repair:
+        mesh, face_map = repair(mesh)
+    config = model.config
+    if args.smooth_weight is not None:
+        from dataclasses import replace
+
+        config = replace(config, smooth_weight=args.smooth_weight)
+    result = segment(mesh, model, config, device=next(model.network.parameters()).device)
+    output = args.output or args.mesh.with_name(f"{args.mesh.stem}_labels.ply")
+    label_path = args.labels or output.with_suffix(".txt")
+    save_mesh(output, mesh, face_colors=label_colors(result.labels, model.n_classes))
+    labels = result.labels
+    if face_map is not None:  # back to the input faces; dropped faces get -1
+        labels = np.full(n_input_faces, -1)
+        labels[face_map] = result.labels
+    np.savetxt(label_path, labels, fmt="%d")
+    counts = np.bincount(result.labels, minlength=model.n_classes)
+    print(f"{mesh.n_faces} faces -> {output} and {label_path}")
+    for name, count in zip(model.label_names, counts):
+        print(f"  {name}: {count} faces")
+
+
+def _evaluate(args) -> None:
+    from anseg import datasets
+    from anseg.train import evaluate
+
+    model = _load_model(args.model)
+    test_set = datasets.load(args.dataset, category=args.category, split="test", split_index=args.split, root=args.data)
+    scores = evaluate(model, test_set)
+    _print_scores(scores)
+    if args.json:
+        scores.pop("predictions")
+        args.json.write_text(json.dumps(scores, indent=1))
+
+
+def _features(args) -> None:
+    from anseg import features, load_mesh
+
+    x = features.compute(load_mesh(args.mesh), groups=[g.strip() for g in args.groups.split(",") if g.strip()])
+    np.save(args.output, x)
+    print(f"{x.shape[0]} faces x {x.shape[1]} features -> {args.output}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    from anseg.datasets import DatasetError
+    from anseg.mesh import MeshError
+
+    args = _parser().parse_args(argv)
+    handlers = {"train": _train, "segment": _segment, "evaluate": _evaluate, "features": _features}
+    try:
+        handlers[args.command](args)
+    except (MeshError, DatasetError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"anseg {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("anseg: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,228 @@
+"""Algorithm 1 end to end: features -> N x (cluster, attend, collapse) -> classify -> upsample -> smooth.
+
+``build_levels`` runs the downsampling units and keeps every level (mesh,
+features, patch layout, attention, collapse record), which training and the
+figures need; ``segment`` adds the classification, the upsampling through
+the collapse records and the graph cut.
+
+Choices this module makes (see DESIGN.md):
+
+* Features of a coarser level: the local groups (edge, angles, ratios, gc)
+  are recomputed on the coarse mesh; the global ones (sdf, agd) are pooled,
+  area-weighted, from the faces of the level above that each coarse face
+  stands for. A last column holds the level index / cycles, so that the one
+  network shared by all levels knows how coarse its input is.
+* Features are standardised with the statistics stored in the model
+  (computed on the training meshes), so that a mesh is read the same way at
+  training and at test time.
+* Labels come from the coarsest level, as in the paper; ``combine="all"``
+  instead averages the class probabilities of every level after carrying
+  each one up to the original faces (an option measured in the notebooks).
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+
+from anseg import collapse, features
+from anseg.cache import atomic_write
+from anseg.cluster import PatchLayout, layout
+from anseg.mesh import Mesh
+from anseg.model import AttentionSegmenter, ModelConfig
+from anseg.smooth import smooth as graph_cut
+
+MODES = ("nonuniform", "uniform", "none")
+
+
+@dataclass
+class SegmentConfig:
+    """The switches of Algorithm 1 (the paper's defaults: 4 cycles at ratio 0.5)."""
+
+    cycles: int = 4
+    ratio: float = 0.5
+    mode: str = "nonuniform"
+    groups: tuple[str, ...] = features.DEFAULT_GROUPS
+    clusters: int = 8
+    patch_size: int = 16
+    smooth_weight: float = 1.0
+    combine: str = "coarsest"
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if self.combine not in ("coarsest", "all"):
+            raise ValueError(f"combine must be 'coarsest' or 'all', got {self.combine!r}")
+        if not 0.0 < self.ratio < 1.0:
+            raise ValueError(f"ratio must lie in (0, 1), got {self.ratio}")
+        if self.cycles < 0:
+            raise ValueError(f"cycles must be >= 0, got {self.cycles}")
+        self.groups = tuple(self.groups)
+
+    @property
+    def n_levels(self) -> int:
+        return 1 if self.mode == "none" else self.cycles + 1
+
+
+@dataclass(eq=False)
+class Segmenter:
+    """A trained model ready to segment: the network, the feature statistics it was trained with, its settings."""
+
+    network: AttentionSegmenter
+    config: SegmentConfig
+    feature_mean: np.ndarray
+    feature_std: np.ndarray
+    label_names: list[str]
+
+    @property
+    def n_classes(self) -> int:
+        return self.network.config.n_classes
+
+    def standardize(self, x: np.ndarray) -> np.ndarray:
+        """Features standardised with the training statistics."""
+        if x.shape[1] != len(self.feature_mean):
+            raise ValueError(f"the model expects {len(self.feature_mean)} feature columns, got {x.shape[1]}")
+        return ((x - self.feature_mean) / self.feature_std).astype(np.float32)
+
+    def __call__(self, **inputs):
+        return self.network(**inputs)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write everything needed to segment later, atomically."""
+        payload = {
+            "network_config": asdict(self.network.config),
+            "state_dict": self.network.state_dict(),
+            "segment_config": asdict(self.config),
+            "feature_mean": torch.as_tensor(self.feature_mean),
+            "feature_std": torch.as_tensor(self.feature_std),
+            "label_names": list(self.label_names),
+        }
+        atomic_write(path, lambda tmp: torch.save(payload, tmp))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, device="cpu") -> "Segmenter":
+        """Read a model written by :meth:`save`."""
+        try:
+            payload = torch.load(path, map_location=device, weights_only=True)
+            network = AttentionSegmenter(ModelConfig(**payload["network_config"]))
+            network.load_state_dict(payload["state_dict"])
+        except (OSError, KeyError, TypeError, RuntimeError, pickle.UnpicklingError) as exc:
+            raise ValueError(f"{path}: not a model written by anseg ({type(exc).__name__}: {exc})") from exc
+        return cls(
+            network=network.to(device).eval(),
+            config=SegmentConfig(**payload["segment_config"]),
+            feature_mean=payload["feature_mean"].numpy(),
+            feature_std=payload["feature_std"].numpy(),
+            label_names=list(payload["label_names"]),
+        )
+
+
+@dataclass
+class Level:
+    """One level of the hierarchy; ``record`` leads from this level to the next."""
+
+    mesh: Mesh
+    groups: dict[str, np.ndarray]
+    layout: PatchLayout
+    attention: np.ndarray | None = None
+    record: collapse.CollapseRecord | None = None
+
+    def feature_matrix(self, level: int, n_levels: int) -> np.ndarray:
+        """The model's raw input: the feature groups side by side, then the level column."""
+        column = np.full((self.mesh.n_faces, 1), level / max(1, n_levels - 1))
+        return np.concatenate([*self.groups.values(), column], axis=1).astype(np.float32)
+
+
+@dataclass
+class Segmentation:
+    """What ``segment`` returns: labels and probabilities on the original faces, and every level."""
+
+    labels: np.ndarray
+    probabilities: np.ndarray
+    unsmoothed_labels: np.ndarray
+    levels: list[Level] = field(repr=False)
+
+
+def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, names) -> dict[str, np.ndarray]:
+    """Feature groups of the next level: local ones recomputed, global ones pooled from ``level``."""
+    local = [g for g in names if g in features.LOCAL_GROUPS]
+    out = features.compute_groups(coarse, local) if local else {}
+    for g in names:
+        if g not in out:
+            out[g] = collapse.pool(record, level.groups[g], level.mesh.face_areas)
+    return {g: out[g] for g in names}
+
+
+def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, device) -> dict[str, torch.Tensor]:
+    """Standardised features and the patch layout of one level, as tensors for the model."""
+    x = model.standardize(level.feature_matrix(index, n_levels))
+    return {
+        "x": torch.as_tensor(x, device=device),
+        "patch_of_face": torch.as_tensor(level.layout.patch_of_face, device=device),
+        "slot_of_face": torch.as_tensor(level.layout.slot_of_face, device=device),
+        "n_patches": level.layout.n_patches,
+    }
+
+
+def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: dict[str, np.ndarray] | None = None, device="cpu") -> list[Level]:
+    """Run the N downsampling units; attention comes from ``model`` (no gradients).
+
+    ``groups`` are the level-0 features (computed, with the cache, when not given).
+    """
+    if groups is None:
+        groups = features.compute_groups(mesh, config.groups, cache=True)
+    levels = []
+    current, current_groups = mesh, groups
+    for index in range(config.n_levels):
+        x = np.concatenate(list(current_groups.values()), axis=1)
+        level = Level(current, current_groups, layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed))
+        levels.append(level)
+        if index == config.n_levels - 1:
+            break
+        if config.mode == "nonuniform":
+            model.network.eval()
+            with torch.no_grad():
+                level.attention = model(**model_inputs(model, level, index, config.n_levels, device)).attention.cpu().numpy()
+            scores = level.attention
+        else:
+            scores = None
+        current, level.record = collapse.downsample(current, scores, ratio=config.ratio, mode=config.mode, seed=config.seed + index)
+        current_groups = coarse_groups(level, current, level.record, config.groups)
+    return levels
+
+
+def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentConfig, device="cpu") -> np.ndarray:
+    """Class probabilities on the original faces, carried up from the coarsest level (or all levels)."""
+    model.network.eval()
+    per_level = []
+    with torch.no_grad():
+        for index, level in enumerate(levels):
+            if config.combine == "coarsest" and index < len(levels) - 1:
+                continue
+            out = model(**model_inputs(model, level, index, len(levels), device))
+            if level.attention is None:
+                level.attention = out.attention.cpu().numpy()
+            probs = torch.softmax(out.logits, dim=1).cpu().numpy().astype(np.float64)
+            records = [lv.record for lv in levels[:index]]
+            per_level.append(collapse.upsample_through(records, probs) if records else probs)
+    return np.mean(per_level, axis=0)
+
+
+def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, groups=None, device="cpu") -> Segmentation:
+    """Segment one mesh with a trained model: Algorithm 1, lines 1-9.
+
+    ``config`` defaults to the model's own (the settings it was trained with);
+    pass another to change, e.g., the smoothing weight or the mode.
+    """
+    config = config or model.config
+    mesh.validate()
+    levels = build_levels(mesh, model, config, groups, device)
+    probs = class_probabilities(model, levels, config, device)
+    raw = probs.argmax(axis=1)
+    labels = graph_cut(mesh, probs, weight=config.smooth_weight) if config.smooth_weight > 0 else raw
+    return Segmentation(labels=labels, probabilities=probs, unsmoothed_labels=raw, levels=levels)

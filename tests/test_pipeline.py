@@ -1,0 +1,85 @@
+"""Algorithm 1 end to end on synthetic shapes: levels, segmentation, the saved model, training."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from anseg import datasets
+from anseg.pipeline import SegmentConfig, Segmenter, build_levels, segment
+from anseg.train import Experiment, TrainConfig, evaluate, fit, run_experiment
+
+FAST = SegmentConfig(cycles=2, clusters=4, patch_size=16)
+
+
+@pytest.fixture(scope="module")
+def shapes():
+    return datasets.load("synthetic", category="figure", split="all", n_shapes=8, progress=False)
+
+
+@pytest.fixture(scope="module")
+def model(shapes):
+    torch.set_num_threads(1)  # two threads on a loaded 2-core machine run slower than one
+    return fit(shapes[:3], shapes[0].label_names, FAST, TrainConfig(epochs=2, width=32), progress=False)
+
+
+def test_levels_shrink_by_the_ratio_and_keep_attention(model, shapes):
+    mesh = shapes[4].mesh
+    levels = build_levels(mesh, model, FAST)
+    assert len(levels) == FAST.cycles + 1
+    for finer, coarser in zip(levels, levels[1:]):
+        assert abs(coarser.mesh.n_faces - round(FAST.ratio * finer.mesh.n_faces)) <= 2
+        assert finer.attention is not None and finer.attention.shape == (finer.mesh.n_faces,)
+        assert finer.record.n_fine_faces == finer.mesh.n_faces
+        assert set(coarser.groups) == set(FAST.groups)
+        assert all(len(block) == coarser.mesh.n_faces for block in coarser.groups.values())
+
+
+@pytest.mark.parametrize("mode, n_levels", [("nonuniform", 3), ("uniform", 3), ("none", 1)])
+def test_segment_labels_every_original_face(model, shapes, mode, n_levels):
+    mesh = shapes[5].mesh
+    result = segment(mesh, model, replace(FAST, mode=mode))
+    assert len(result.levels) == n_levels
+    assert result.labels.shape == (mesh.n_faces,) and result.labels.dtype.kind == "i"
+    assert np.allclose(result.probabilities.sum(axis=1), 1.0)
+    assert result.labels.min() >= 0 and result.labels.max() < model.n_classes
+    assert np.array_equal(result.unsmoothed_labels, result.probabilities.argmax(axis=1))
+
+
+def test_saved_model_segments_identically(model, shapes, tmp_path):
+    path = tmp_path / "model.pt"
+    model.save(path)
+    again = Segmenter.load(path)
+    assert again.config == model.config and again.label_names == model.label_names
+    mesh = shapes[6].mesh
+    assert np.array_equal(segment(mesh, model).labels, segment(mesh, again).labels)
+
+
+def test_load_rejects_other_files(tmp_path):
+    bogus = tmp_path / "bogus.pt"
+    bogus.write_bytes(b"not a model")
+    with pytest.raises(ValueError, match="not a model written by anseg"):
+        Segmenter.load(bogus)
+
+
+@pytest.mark.parametrize("bad", [{"mode": "sideways"}, {"ratio": 1.5}, {"cycles": -1}, {"combine": "some"}])
+def test_config_rejects_bad_values(bad):
+    with pytest.raises(ValueError):
+        SegmentConfig(**bad)
+
+
+def test_standardize_checks_the_width(model):
+    with pytest.raises(ValueError, match="feature columns"):
+        model.standardize(np.zeros((3, 2)))
+
+
+def test_experiment_result_is_stored_and_reused(tmp_path, monkeypatch):
+    experiment = Experiment("synthetic", "vessel", 0, replace(FAST, cycles=1), TrainConfig(epochs=1, width=32))
+    first = run_experiment(experiment, out_dir=tmp_path, progress=False, n_shapes=4)
+    assert 0.0 <= first["accuracy"]["unit_area"] <= 1.0
+    assert (tmp_path / "models" / f"{experiment.key()}.pt").is_file()
+    monkeypatch.setattr("anseg.train.fit", lambda *a, **k: pytest.fail("a stored result must not be retrained"))
+    assert run_experiment(experiment, out_dir=tmp_path, progress=False, n_shapes=4) == first
