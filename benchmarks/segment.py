@@ -1,0 +1,146 @@
+"""End-to-end segmentation time by stage, and peak memory, on one mesh.
+
+    python benchmarks/segment.py [--mesh FILE] [--model MODEL.pt] [--subdivide N] [--repeat 3]
+
+Without ``--mesh`` it takes the PSB test mesh closest to 25K faces from
+``$ANSEG_DATA`` (or a subdivided synthetic shape when no data is there);
+``--subdivide 1`` splits every face in four first (a 25K mesh becomes 100K,
+twice gives 400K; use it for the 200K-face memory figure). Without
+``--model`` a model is trained for one epoch on three synthetic shapes:
+speed does not depend on what the weights learnt. Features are computed
+without the cache, so their cost is in the figures. Stages are timed by
+wrapping the package functions that implement them; peak memory is the
+process's peak resident set (ru_maxrss) measured in a fresh child process
+per mesh, minus the resident set after imports and loading.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from contextlib import contextmanager
+
+import numpy as np
+
+
+def pick_mesh(path: str | None, subdivide: int):
+    import igl
+
+    from anseg import datasets, load_mesh
+    from anseg.mesh import Mesh
+
+    if path:
+        mesh, name = load_mesh(path), path
+    else:
+        try:
+            items = [m for c in ("Teddy", "Human", "Airplane") for m in datasets.load("psb", category=c, split="test", progress=False)]
+            item = min(items, key=lambda m: abs(m.mesh.n_faces - 25_000))
+            mesh, name = item.mesh, f"PSB {item.name}"
+        except datasets.DatasetError:
+            item = datasets.load("synthetic", category="figure", split="test", progress=False)[0]
+            v, f = igl.upsample(item.mesh.vertices, item.mesh.faces, 3)
+            mesh, name = Mesh(v, f), f"synthetic {item.name} subdivided"
+    if subdivide:
+        v, f = igl.upsample(mesh.vertices, mesh.faces, subdivide)
+        mesh, name = Mesh(v, f), f"{name} subdivided x{subdivide}"
+    return mesh, name
+
+
+def quick_model():
+    from anseg import datasets
+    from anseg.pipeline import SegmentConfig
+    from anseg.train import TrainConfig, fit
+
+    shapes = datasets.load("synthetic", category="figure", split="train", progress=False)[:3]
+    return fit(shapes, shapes[0].label_names, SegmentConfig(), TrainConfig(epochs=1), progress=False)
+
+
+@contextmanager
+def stage_timers(totals: dict):
+    """Wrap the functions behind each stage so that their time adds up in ``totals``."""
+    import anseg.pipeline as pipeline
+
+    wrapped = {
+        "cluster + sequence": (pipeline, "layout"),
+        "collapse": (pipeline.collapse, "downsample"),
+        "coarse features": (pipeline, "coarse_groups"),
+        "upsample": (pipeline.collapse, "upsample_through"),
+        "graph cut": (pipeline, "graph_cut"),
+        "network": (pipeline.Segmenter, "__call__"),
+    }
+    originals = {}
+    for stage, (owner, name) in wrapped.items():
+        original = getattr(owner, name)
+        originals[stage] = (owner, name, original)
+
+        def timed(*args, _original=original, _stage=stage, **kwargs):
+            start = time.perf_counter()
+            try:
+                return _original(*args, **kwargs)
+            finally:
+                totals[_stage] += time.perf_counter() - start
+
+        setattr(owner, name, timed)
+    try:
+        yield
+    finally:
+        for owner, name, original in originals.values():
+            setattr(owner, name, original)
+
+
+def measure(args) -> None:
+    """Runs in a child process: time the stages, then report the peak memory."""
+    import torch
+
+    from anseg.features import compute_groups
+    from anseg.pipeline import Segmenter, segment
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    model = Segmenter.load(args.model) if args.model else quick_model()
+    mesh, name = pick_mesh(args.mesh, args.subdivide)
+    baseline = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    segment(mesh, model, groups=compute_groups(mesh, model.config.groups, cache=False))  # warm-up: numba and torch first calls
+    runs = []
+    for _ in range(args.repeat):
+        totals = defaultdict(float)
+        start = time.perf_counter()
+        groups = compute_groups(mesh, model.config.groups, cache=False)
+        totals["features (level 0)"] = time.perf_counter() - start
+        with stage_timers(totals):
+            segment(mesh, model, groups=groups)
+        totals["total"] = time.perf_counter() - start
+        runs.append(totals)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    best = min(runs, key=lambda t: t["total"])
+    print(f"mesh: {name}, {mesh.n_faces} faces; config: {model.config.cycles} cycles at ratio {model.config.ratio}, mode {model.config.mode}")
+    print(f"torch threads: {torch.get_num_threads()}; best of {args.repeat} runs after a warm-up")
+    print(f"{'stage':<22}{'seconds':>10}")
+    for stage, seconds in sorted(best.items(), key=lambda kv: (kv[0] == "total", -kv[1])):
+        print(f"{stage:<22}{seconds:>10.3f}")
+    print(f"peak resident memory: {peak / 2**20:.2f} GiB (after loading: {baseline / 2**20:.2f} GiB)")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mesh", help="mesh file (default: a PSB test mesh near 25K faces)")
+    parser.add_argument("--model", help="model file written by `anseg train` (default: a one-epoch synthetic model)")
+    parser.add_argument("--subdivide", type=int, default=0, help="split every face in four this many times first")
+    parser.add_argument("--repeat", type=int, default=3, help="timed runs (default: 3)")
+    parser.add_argument("--threads", type=int, default=0, help="torch threads (default: torch's choice)")
+    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        measure(args)
+        return
+    # a fresh process, so that the peak memory belongs to this mesh alone
+    subprocess.run([sys.executable, __file__, "--child", *(argv if argv is not None else sys.argv[1:])], check=True)
+
+
+if __name__ == "__main__":
+    np.seterr(all="ignore")
+    main()

@@ -1,0 +1,75 @@
+"""The `anseg` command: help, clear errors for bad input, and a tiny train -> segment -> evaluate run."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from anseg.cli import main
+from anseg.mesh import save_mesh
+from conftest import grid_mesh
+
+
+def run_cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "anseg.cli", *map(str, args)], capture_output=True, text=True, cwd=cwd)
+
+
+@pytest.mark.parametrize("command", [[], ["train"], ["segment"], ["evaluate"], ["features"]])
+def test_help_everywhere(command, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([*command, "--help"])
+    assert exit_info.value.code == 0
+    assert "usage: anseg" in capsys.readouterr().out
+
+
+def test_features_writes_npy(tmp_path, capsys):
+    mesh_path = tmp_path / "sphere.ply"
+    save_mesh(mesh_path, grid_mesh(4, closed=True))
+    out = tmp_path / "f.npy"
+    assert main(["features", str(mesh_path), "-o", str(out), "--groups", "edge,angles,gc"]) == 0
+    x = np.load(out)
+    assert x.shape[0] == 320 and np.isfinite(x).all()
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [(None, "no such file"), ("OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n", "zero-area"), ("garbage\n", "cannot read mesh")],
+)
+def test_bad_mesh_gives_message_not_traceback(tmp_path, content, message):
+    path = tmp_path / "bad.off"
+    if content is not None:
+        path.write_text(content)
+    result = run_cli("features", path, "-o", tmp_path / "x.npy")
+    assert result.returncode == 2
+    assert message in result.stderr and "Traceback" not in result.stderr
+
+
+def test_unknown_dataset_and_missing_model(tmp_path):
+    result = run_cli("evaluate", tmp_path / "missing.pt", "--dataset", "psb")
+    assert result.returncode == 2 and "no such model file" in result.stderr and "Traceback" not in result.stderr
+    result = run_cli("train", "--dataset", "nonsense", "-o", tmp_path / "m.pt")
+    assert result.returncode == 2 and "nonsense" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.slow
+def test_train_segment_evaluate(tmp_path):
+    model = tmp_path / "vessel.pt"
+    result = run_cli("train", "--dataset", "synthetic", "--category", "vessel", "--epochs", "1", "--cycles", "1", "-o", model, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert model.is_file() and not model.with_suffix(".ckpt").exists()
+    from anseg import datasets
+
+    shape = datasets.load("synthetic", category="vessel", split="test", progress=False)[0]
+    mesh_path = tmp_path / "vessel.off"
+    save_mesh(mesh_path, shape.mesh)
+    result = run_cli("segment", model, mesh_path, "-o", tmp_path / "out.ply")
+    assert result.returncode == 0, result.stderr
+    labels = np.loadtxt(tmp_path / "out.txt", dtype=int)
+    assert labels.shape == (shape.mesh.n_faces,) and labels.min() >= 0
+    assert (tmp_path / "out.ply").is_file()
+    result = run_cli("evaluate", model, "--dataset", "synthetic", "--category", "vessel", "--json", tmp_path / "scores.json")
+    assert result.returncode == 0, result.stderr
+    assert "unit_area" in result.stdout and (tmp_path / "scores.json").is_file()

@@ -1,0 +1,78 @@
+"""Training: it learns (above chance and above a features-only baseline), it resumes, it is deterministic."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from sklearn.linear_model import LogisticRegression
+
+from anseg import datasets, features
+from anseg.metrics import pooled_accuracy
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig, evaluate, feature_statistics, fit
+
+SMALL = SegmentConfig(cycles=2, clusters=4, patch_size=16)
+
+
+@pytest.fixture(scope="module")
+def split():
+    torch.set_num_threads(1)  # two threads on a loaded 2-core machine run slower than one
+    load = dict(category="figure", n_shapes=8, progress=False)
+    return datasets.load("synthetic", split="train", **load), datasets.load("synthetic", split="test", **load)
+
+
+def logistic_baseline(train_set, test_set) -> float:
+    """Logistic regression on the same per-face features, scored like the model (unit-area Eq. 5)."""
+    x_train = np.concatenate([features.compute(m.mesh) for m in train_set])
+    mean, std = x_train.mean(0), x_train.std(0) + 1e-6
+    classifier = LogisticRegression(max_iter=1000).fit((x_train - mean) / std, np.concatenate([m.labels for m in train_set]))
+    predicted = [classifier.predict((features.compute(m.mesh) - mean) / std) for m in test_set]
+    return pooled_accuracy(predicted, [m.labels for m in test_set], [m.mesh.face_areas for m in test_set])["unit_area"]
+
+
+@pytest.mark.slow
+def test_learns_above_chance_and_above_the_features_only_baseline(split):
+    train_set, test_set = split
+    model = fit(train_set, train_set[0].label_names, SMALL, TrainConfig(epochs=60), progress=False)
+    ours = evaluate(model, test_set, progress=False)["smoothed"]["unit_area"]
+    baseline = logistic_baseline(train_set, test_set)
+    chance = 1.0 / len(train_set[0].label_names)
+    assert ours > 3 * chance
+    assert ours > baseline, f"ours {ours:.3f} vs logistic regression {baseline:.3f}"
+
+
+def test_deterministic_for_a_seed(split):
+    train_set, _ = split
+    run = lambda: fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(epochs=1, width=16), progress=False)
+    first, second = run(), run()
+    for a, b in zip(first.network.parameters(), second.network.parameters()):
+        assert torch.equal(a, b)
+
+
+def test_resumes_from_a_checkpoint(split, tmp_path):
+    train_set, _ = split
+    names, checkpoint = train_set[0].label_names, tmp_path / "run.ckpt"
+    fit(train_set[:2], names, SMALL, TrainConfig(epochs=2, width=16), checkpoint=checkpoint, progress=False)
+    assert torch.load(checkpoint, weights_only=True)["epoch"] == 2
+    straight = fit(train_set[:2], names, SMALL, TrainConfig(epochs=2, width=16), progress=False)
+    # the same settings find the finished checkpoint: nothing left to train, same weights as a straight run
+    resumed = fit(train_set[:2], names, SMALL, TrainConfig(epochs=2, width=16), checkpoint=checkpoint, progress=False)
+    for a, b in zip(straight.network.parameters(), resumed.network.parameters()):
+        assert torch.equal(a, b)
+    # other settings ignore it
+    other = TrainConfig(epochs=1, width=16, seed=5)
+    assert fit(train_set[:2], names, SMALL, other, checkpoint=checkpoint, progress=False) is not None
+    assert torch.load(checkpoint, weights_only=True)["epoch"] == 1
+
+
+def test_feature_statistics_leave_the_level_column():
+    groups = [{"a": np.array([[1.0, 2.0], [3.0, 2.0]])}]
+    mean, std = feature_statistics(groups)
+    assert mean.tolist() == [2.0, 2.0, 0.0]
+    assert std[0] == pytest.approx(1.0) and std[1] == pytest.approx(1e-6) and std[2] == 1.0
+
+
+def test_rejects_empty_training_set():
+    with pytest.raises(ValueError, match="no training meshes"):
+        fit([], ["a"], SMALL)
