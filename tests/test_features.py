@@ -1,0 +1,327 @@
+"""Per-face features: invariances, known shapes, the cache, parallel computation and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+from scipy.stats import spearmanr
+
+from anseg import features
+from anseg.mesh import Mesh, MeshError
+from conftest import grid_mesh
+
+FAST = {"sdf_rays": 8, "agd_sources": 16}  # cheaper than the defaults, same code paths
+
+
+def blob() -> Mesh:
+    """A closed, stretched and bumpy sphere: no symmetry, so no ties that rounding could break."""
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    bumps = 1.0 + 0.04 * np.random.default_rng(0).standard_normal(len(sphere.vertices))
+    return Mesh(sphere.vertices * bumps[:, None] * [1.6, 1.0, 0.7], sphere.faces)
+
+
+def open_cap() -> Mesh:
+    """A curved surface with one boundary loop: an icosphere with its bottom cut away."""
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    keep = sphere.vertices[sphere.faces].mean(axis=1)[:, 2] > -0.3
+    used, faces = np.unique(sphere.faces[keep], return_inverse=True)
+    return Mesh(sphere.vertices[used], faces.reshape(-1, 3))
+
+
+def cylinder(radius: float, offset: float) -> trimesh.Trimesh:
+    shape = trimesh.creation.cylinder(radius=radius, height=2.0, sections=24)
+    shape = shape.subdivide_to_size(0.25)
+    shape.apply_translation([offset, 0.0, 0.0])
+    return shape
+
+
+def assert_same_features(a: np.ndarray, b: np.ndarray, tol: float) -> None:
+    """Equal up to ``tol`` relative to each value and to its column's spread."""
+    scale = np.abs(b) + b.std(axis=0) + 1e-12
+    worst = np.max(np.abs(a - b) / scale)
+    assert worst <= tol, f"features differ by {worst:.2e} (relative), more than {tol:.0e}"
+
+
+# ------------------------------------------------------------- invariances
+@pytest.mark.parametrize("group", ["edge", "angles", "ratios"])
+def test_local_groups_ignore_the_order_of_a_faces_vertices(group):
+    mesh = blob()
+    rolled = Mesh(mesh.vertices, np.roll(mesh.faces, 1, axis=1))
+    a = features.compute_groups(mesh, [group])[group]
+    b = features.compute_groups(rolled, [group])[group]
+    assert_same_features(b, a, tol=1e-5)
+
+
+@pytest.mark.parametrize("group", features.GROUPS)
+def test_every_group_is_scale_invariant(group):
+    mesh = blob()
+    scaled = Mesh(mesh.vertices * 7.3 + [1.0, -2.0, 0.5], mesh.faces)
+    a = features.compute(mesh, [group], cache=False, **FAST)
+    b = features.compute(scaled, [group], cache=False, **FAST)
+    assert_same_features(b, a, tol=1e-4)
+
+
+@pytest.mark.parametrize("group", features.GROUPS)
+def test_every_group_is_rotation_invariant(group):
+    mesh = blob()
+    rotated = Mesh(mesh.vertices @ Rotation.from_euler("xyz", [0.3, -1.1, 2.0]).as_matrix().T, mesh.faces)
+    a = features.compute(mesh, [group], cache=False, **FAST)
+    b = features.compute(rotated, [group], cache=False, **FAST)
+    assert_same_features(b, a, tol=1e-3)
+
+
+def test_features_are_deterministic():
+    mesh = blob()
+    a = features.compute(mesh, features.GROUPS, cache=False, **FAST)
+    b = features.compute(Mesh(mesh.vertices.copy(), mesh.faces.copy()), features.GROUPS, cache=False, **FAST)
+    np.testing.assert_array_equal(a, b)
+
+
+# --------------------------------------------------------- shapes and values
+@pytest.mark.parametrize(
+    "mesh", [grid_mesh(6), grid_mesh(4, closed=True), open_cap(), blob()], ids=["grid", "sphere", "open-cap", "blob"]
+)
+def test_all_groups_finite_with_named_columns(mesh):
+    x = features.compute(mesh, features.GROUPS, cache=False, **FAST)
+    assert x.shape == (mesh.n_faces, len(features.feature_names(features.GROUPS)))
+    assert x.dtype == np.float32
+    assert np.isfinite(x).all()
+
+
+def test_feature_names_follow_groups_and_settings():
+    names = features.feature_names(("edge", "smooth"), smooth_radii=(0.1, 0.2))
+    assert names[:3] == ["edge_sum", "edge_pair_sum", "edge_product"]
+    assert len(names) == 3 + 3 * 2 and "smooth_sdf_r0.2" in names
+    blocks = features.compute_groups(blob(), ("edge", "smooth"), smooth_radii=(0.1, 0.2), **FAST)
+    assert [b.shape[1] for b in blocks.values()] == [3, 6]
+
+
+def test_edge_encoding_matches_the_paper_on_the_unit_area_mesh():
+    mesh = grid_mesh(2)  # right isosceles triangles; total area 4 -> legs 1/2 after normalisation
+    edge = features.compute_groups(mesh, ["edge"])["edge"]
+    a, c = 0.5, 0.5 * np.sqrt(2.0)
+    np.testing.assert_allclose(edge, np.tile([2 * a + c, a * a + 2 * a * c, a * a * c], (mesh.n_faces, 1)), rtol=1e-6)
+    angles = features.compute_groups(mesh, ["angles"])["angles"]
+    np.testing.assert_allclose(angles, np.tile([np.pi / 4, np.pi / 4, np.pi / 2], (mesh.n_faces, 1)), rtol=1e-6)
+
+
+def test_gaussian_curvature_of_a_sphere_is_constant_and_positive():
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    gc = features.compute_groups(Mesh(sphere.vertices, sphere.faces), ["gc"])["gc"]
+    # unit area: radius 1/sqrt(4 pi), so K = 4 pi everywhere
+    np.testing.assert_allclose(gc[:, 0], np.log1p(4 * np.pi), rtol=0.03)
+    assert (gc[:, 1] > 0).all()
+
+
+def test_gaussian_curvature_of_a_flat_grid_is_zero():
+    gc = features.compute_groups(grid_mesh(6), ["gc"])["gc"]
+    np.testing.assert_array_equal(gc, 0.0)
+
+
+def test_gaussian_curvature_signs_on_a_saddle_and_a_bump():
+    n = 12
+    xs, ys = np.meshgrid(np.linspace(-1, 1, n + 1), np.linspace(-1, 1, n + 1), indexing="ij")
+    grid = grid_mesh(n)
+    saddle = Mesh(np.stack([xs.ravel(), ys.ravel(), 0.3 * (xs**2 - ys**2).ravel()], axis=1), grid.faces)
+    bump = Mesh(np.stack([xs.ravel(), ys.ravel(), -0.3 * (xs**2 + ys**2).ravel()], axis=1), grid.faces)
+    centre = np.argmin(np.linalg.norm(saddle.face_centroids[:, :2], axis=1))
+    assert features.compute_groups(saddle, ["gc"])["gc"][centre, 0] < 0
+    assert features.compute_groups(bump, ["gc"])["gc"][centre, 0] > 0
+
+
+def test_sdf_of_a_thin_cylinder_is_smaller_than_of_a_fat_one():
+    shape = trimesh.util.concatenate([cylinder(0.1, -2.0), cylinder(0.5, 2.0)])
+    mesh = Mesh(shape.vertices, shape.faces)
+    sdf = features.compute_groups(mesh, ["sdf"])["sdf"]
+    thin = mesh.face_centroids[:, 0] < 0
+    assert np.median(sdf[thin, 0]) < 0.4 * np.median(sdf[~thin, 0])
+    assert np.median(sdf[thin, 1]) < np.median(sdf[~thin, 1])
+
+
+def test_sdf_of_a_sphere_is_close_to_its_diameter_scaled_by_the_cone():
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    sdf = features.compute_groups(Mesh(sphere.vertices, sphere.faces), ["sdf"])["sdf"][:, 0]
+    # a chord at angle a to the inward normal of a sphere of diameter D is D cos a; unit area: D = 1/sqrt(pi)
+    diameter = 1.0 / np.sqrt(np.pi)
+    assert 0.7 * diameter < sdf.min() and sdf.max() < diameter
+
+
+def test_agd_is_highest_at_the_ends_of_an_elongated_shape():
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    mesh = Mesh(sphere.vertices * [3.0, 1.0, 1.0], sphere.faces)
+    agd = features.compute_groups(mesh, ["agd"], agd_sources=32)["agd"]
+    x = np.abs(mesh.face_centroids[:, 0])
+    assert spearmanr(agd[:, 0], x).statistic > 0.95
+    assert x[np.argmax(agd[:, 0])] > 0.9 * x.max()
+    assert agd[:, 1].min() == 0.0 and agd[:, 1].max() == 1.0
+
+
+def test_agd_stays_within_each_connected_component():
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    far = sphere.copy()
+    far.apply_translation([10.0, 0.0, 0.0])
+    both = trimesh.util.concatenate([sphere, far])
+    agd = features.compute_groups(Mesh(both.vertices, both.faces), ["agd"], agd_sources=16)["agd"][:, 0]
+    half = len(sphere.faces)
+    # two equal spheres: equal AGD, and on the unit-area pair each is 1/sqrt(2) of a unit sphere's pi/2 * radius
+    np.testing.assert_allclose(agd[:half].mean(), agd[half:].mean(), rtol=0.02)
+    radius = 1.0 / np.sqrt(8 * np.pi)
+    np.testing.assert_allclose(agd.mean(), np.pi / 2 * radius, rtol=0.05)
+
+
+def test_smoothing_keeps_the_integral_and_lowers_the_spread():
+    mesh = blob()
+    blocks = features.compute_groups(mesh, ["gc", "smooth"], smooth_radii=(0.05, 0.3), **FAST)
+    area = mesh.normalized().face_areas
+    raw, small, large = blocks["gc"][:, 0], blocks["smooth"][:, 2], blocks["smooth"][:, 3]  # gc_slog at r=0.05, 0.3
+    for smoothed in (small, large):
+        np.testing.assert_allclose((smoothed * area).sum(), (raw * area).sum(), rtol=1e-4)
+    assert large.std() < small.std() < raw.std()
+
+
+# ------------------------------------------------------------------- cache
+@pytest.fixture
+def cache_root(tmp_path, monkeypatch):
+    monkeypatch.setenv("ANSEG_CACHE", str(tmp_path))
+    return tmp_path / "features"
+
+
+def test_second_call_reads_the_cache(cache_root, monkeypatch):
+    mesh = blob()
+    first = features.compute(mesh, **FAST)
+    assert len(list(cache_root.glob("*.npy"))) == 1
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("recomputed although cached")
+
+    monkeypatch.setattr(features, "compute_groups", refuse)
+    np.testing.assert_array_equal(features.compute(mesh, **FAST), first)
+    with pytest.raises(AssertionError, match="recomputed"):
+        features.compute(mesh, ["edge"], **FAST)  # other groups, other key
+    with pytest.raises(AssertionError, match="recomputed"):
+        features.compute(mesh, cache=False, **FAST)
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda path: path.write_bytes(path.read_bytes()[: len(path.read_bytes()) // 2]),
+        lambda path: np.save(path, np.zeros((3, 3), dtype=np.float32)),
+        lambda path: np.save(path, np.full(np.load(path).shape, np.nan, dtype=np.float32)),
+    ],
+    ids=["truncated", "wrong-shape", "non-finite"],
+)
+def test_a_damaged_cache_entry_is_detected_and_recomputed(cache_root, damage):
+    mesh = blob()
+    first = features.compute(mesh, **FAST)
+    (entry,) = cache_root.glob("*.npy")
+    damage(entry)
+    with pytest.warns(RuntimeWarning, match="damaged feature cache entry"):
+        again = features.compute(mesh, **FAST)
+    np.testing.assert_array_equal(again, first)
+    np.testing.assert_array_equal(np.load(entry), first)
+
+
+def test_compute_groups_can_cut_blocks_from_the_cache(cache_root):
+    mesh = blob()
+    blocks = features.compute_groups(mesh, ["edge", "agd"], cache=True, **FAST)
+    assert len(list(cache_root.glob("*.npy"))) == 1
+    fresh = features.compute_groups(mesh, ["edge", "agd"], **FAST)
+    for name in ("edge", "agd"):
+        np.testing.assert_array_equal(blocks[name], fresh[name])
+
+
+def test_compute_many_keeps_input_order(cache_root):
+    meshes = [blob(), open_cap(), grid_mesh(5)]
+    expected = [features.compute(m, cache=False, **FAST) for m in meshes]
+    parallel = features.compute_many(meshes, workers=2, progress=False, **FAST)
+    for got, want in zip(parallel, expected):
+        np.testing.assert_array_equal(got, want)
+    cached = features.compute_many(meshes[::-1], workers=2, progress=False, **FAST)
+    for got, want in zip(cached, expected[::-1]):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_compute_many_keeps_small_jobs_in_this_process(cache_root, monkeypatch):
+    def no_pool(*args, **kwargs):
+        raise AssertionError("started a process pool for a small job")
+
+    monkeypatch.setattr(features, "ProcessPoolExecutor", no_pool)
+    meshes = [blob(), grid_mesh(5)]
+    got = features.compute_many(meshes, progress=False, cache=False, **FAST)
+    for mesh, x in zip(meshes, got):
+        np.testing.assert_array_equal(x, features.compute(mesh, cache=False, **FAST))
+    with pytest.raises(ValueError, match="workers"):
+        features.compute_many(meshes, workers=0)
+
+
+# -------------------------------------------------------------- bad input
+def test_unknown_group_lists_the_valid_ones():
+    with pytest.raises(ValueError, match="valid ones.*'edge'"):
+        features.compute(blob(), ["edge", "curvature"], cache=False)
+    with pytest.raises(ValueError, match="unknown feature groups"):
+        features.feature_names("edge+gc")
+
+
+def test_unknown_or_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="unknown feature settings"):
+        features.compute(blob(), cache=False, rays=3)
+    with pytest.raises(ValueError, match="sdf_cone_degrees"):
+        features.compute(blob(), cache=False, sdf_cone_degrees=200)
+
+
+def test_invalid_mesh_raises_mesh_error():
+    mesh = grid_mesh(3)
+    vertices = mesh.vertices.copy()
+    vertices[0] = np.nan
+    with pytest.raises(MeshError, match="NaN"):
+        features.compute(Mesh(vertices, mesh.faces), cache=False)
+    with pytest.raises(MeshError, match="zero-area"):
+        features.compute_groups(Mesh(mesh.vertices, np.vstack([mesh.faces, [[0, 0, 1]]])), ["edge"])
+
+
+def test_ablation_sets_grow_from_edge_to_all_four_descriptors():
+    sets = list(features.ABLATION_SETS.values())
+    assert sets[0] == ("edge",) and sets[-1] == ("edge", "gc", "sdf", "agd")
+    assert all(set(a) < set(b) for a, b in zip(sets, sets[1:]))
+    assert set(features.LOCAL_GROUPS) | set(features.GLOBAL_GROUPS) == set(features.GROUPS)
+
+
+# --------------------------------------------------------------- real data
+@pytest.mark.realdata
+def test_real_meshes_give_finite_features(psb_sample):
+    for category, items in psb_sample.items():
+        mesh = items[0].mesh
+        x = features.compute(mesh, cache=False)
+        assert x.shape == (mesh.n_faces, len(features.feature_names())), category
+        assert np.isfinite(x).all(), category
+
+
+# -------------------------------------------------------------- ray casting
+def test_ray_caster_finds_the_same_first_hits_as_libigl():
+    import igl
+
+    mesh = blob()
+    rng = np.random.default_rng(1)
+    origins = rng.uniform(-0.5, 0.5, size=(2000, 3)) * [1.6, 1.0, 0.7]
+    directions = rng.standard_normal((2000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    face, t = features._first_hits(features._build_bvh(mesh.vertices, mesh.faces), origins, directions)
+    tree = igl.AABB()
+    tree.init(mesh.vertices, mesh.faces)
+    ref_face, ref_t, _ = tree.intersect_ray_first(mesh.vertices, mesh.faces, origins, directions)
+    assert (face >= 0).all() and (ref_face >= 0).all()  # every origin is inside the closed blob
+    assert (face == ref_face).mean() > 0.999
+    np.testing.assert_allclose(t[face == ref_face], ref_t[face == ref_face], rtol=1e-6)  # libigl keeps t in float32
+
+
+def test_ray_caster_on_a_single_triangle():
+    bvh = features._build_bvh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
+    origins = np.array([[0.2, 0.2, 1.0], [0.2, 0.2, -2.0], [0.9, 0.9, 1.0], [0.2, 0.2, 1.0]])
+    directions = np.array([[0.0, 0, -1], [0, 0, 1], [0, 0, -1], [0, 0, 1]])
+    face, t = features._first_hits(bvh, origins, directions)
+    np.testing.assert_array_equal(face, [0, 0, -1, -1])
+    np.testing.assert_allclose(t[:2], [1.0, 2.0])
+    assert np.isinf(t[2:]).all()
