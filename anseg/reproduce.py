@@ -28,6 +28,9 @@ COMMON = {
 
 SYNTHETIC_CATEGORIES = ["figure", "vessel"]
 PSB_ABLATION = ["Human", "Teddy", "Airplane"]
+# explore.ipynb: segment the category's first test mesh with a model trained here, statically rendered;
+# a user points mesh_path / model_path at their own files and sets interactive for a trame view.
+EXPLORE_DEFAULTS = {"mesh_path": None, "model_path": None, "interactive": False}
 
 PER_NOTEBOOK = {
     "table1_psb.ipynb": {
@@ -41,9 +44,9 @@ PER_NOTEBOOK = {
         "smoke": {"categories": ["vessel"]},
     },
     "table3_human.ipynb": {
-        "real": {"dataset": "human_seg"},
-        "synthetic": {"dataset": "synthetic"},
-        "smoke": {"dataset": "synthetic"},
+        "real": {"dataset": "human_seg", "category": None},
+        "synthetic": {"dataset": "synthetic", "category": "figure"},
+        "smoke": {"dataset": "synthetic", "category": "figure"},
     },
     "table4_ablation.ipynb": {
         "real": {"categories": PSB_ABLATION},
@@ -66,9 +69,9 @@ PER_NOTEBOOK = {
         "smoke": {"category": "figure"},
     },
     "explore.ipynb": {
-        "real": {"category": "Teddy"},
-        "synthetic": {"category": "figure"},
-        "smoke": {"category": "figure"},
+        "real": {"category": "Teddy", **EXPLORE_DEFAULTS},
+        "synthetic": {"category": "figure", **EXPLORE_DEFAULTS},
+        "smoke": {"category": "figure", **EXPLORE_DEFAULTS},
     },
 }
 

@@ -267,9 +267,11 @@ class Experiment:
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
 
-    def key(self) -> str:
+    def key(self, dataset_options: dict | None = None) -> str:
+        """A short hash of everything that decides the result, data set options (e.g. ``n_shapes``) included."""
         text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index,
-                           "segment": asdict(self.segment), "train": asdict(self.train)}, sort_keys=True)
+                           "segment": asdict(self.segment), "train": asdict(self.train),
+                           **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -297,7 +299,7 @@ def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike
     """
     from anseg import datasets
 
-    key = experiment.key()
+    key = experiment.key(dataset_options)
     result_path = Path(out_dir, "results", "runs", f"{key}.json") if out_dir else None
     if result_path is not None and result_path.is_file():
         return json.loads(result_path.read_text())

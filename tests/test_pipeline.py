@@ -80,6 +80,7 @@ def test_experiment_result_is_stored_and_reused(tmp_path, monkeypatch):
     experiment = Experiment("synthetic", "vessel", 0, replace(FAST, cycles=1), TrainConfig(epochs=1, width=32))
     first = run_experiment(experiment, out_dir=tmp_path, progress=False, n_shapes=4)
     assert 0.0 <= first["accuracy"]["unit_area"] <= 1.0
-    assert (tmp_path / "models" / f"{experiment.key()}.pt").is_file()
+    assert (tmp_path / "models" / f"{experiment.key({'n_shapes': 4})}.pt").is_file()
+    assert experiment.key({"n_shapes": 4}) != experiment.key()
     monkeypatch.setattr("anseg.train.fit", lambda *a, **k: pytest.fail("a stored result must not be retrained"))
     assert run_experiment(experiment, out_dir=tmp_path, progress=False, n_shapes=4) == first

@@ -1,0 +1,72 @@
+"""The notebooks: their parameters match anseg.reproduce, and the smoke reproduction runs them all cleanly."""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from anseg.reproduce import COMMON, NOTEBOOKS, PER_NOTEBOOK, REPO
+
+SMOKE_TIMEOUT_S = 1800  # about 4 minutes on a 2-core CPU; the margin is for a loaded machine
+
+
+def _parameter_names(notebook) -> set[str]:
+    cells = [c for c in notebook.cells if "parameters" in c.metadata.get("tags", [])]
+    assert len(cells) == 1, "exactly one cell must be tagged 'parameters'"
+    tree = ast.parse(cells[0].source)
+    return {target.id for node in tree.body if isinstance(node, ast.Assign) for target in node.targets}
+
+
+@pytest.mark.parametrize("name", sorted(PER_NOTEBOOK))
+def test_notebook_takes_exactly_the_parameters_reproduce_passes(name):
+    notebook = nbformat.read(NOTEBOOKS / name, as_version=4)
+    names = _parameter_names(notebook)
+    for kind in COMMON:
+        assert names == set(COMMON[kind]) | set(PER_NOTEBOOK[name][kind]) | {"output_dir"}, kind
+    assert notebook.metadata["kernelspec"]["name"] == "python3"
+    code = [c for c in notebook.cells if c.cell_type == "code"]
+    assert all(not c.outputs and c.execution_count is None for c in code), "source notebooks are committed without outputs"
+
+
+def _expected_files(out: Path) -> list[Path]:
+    smoke = {name: {**COMMON["smoke"], **PER_NOTEBOOK[name]["smoke"]} for name in PER_NOTEBOOK}
+    results = ["table1_psb.csv", "table1_psb_runs.csv", "table2_coseg.csv", "table3_human.csv", "table4_ablation.csv",
+               "table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv", "fig4_attention.csv"]
+    results += [name.replace(".ipynb", ".json") for name in PER_NOTEBOOK]
+    figures = ["table3_human.png", "table4_ablation.png", "fig12_features.png", "fig12_renders.png", "fig4_attention.png",
+               "fig5_8_predictions.png", "fig10_modes.png", "explore_levels.png", "explore_labels.png",
+               "explore_confidence.png"]
+    figures += [f"table2_coseg_{c}.png" for c in smoke["table2_coseg.ipynb"]["categories"]]
+    figures += [f"fig11_cycles_ratio_{c}.png" for c in smoke["fig11_cycles_ratio.ipynb"]["categories"]]
+    return [out / "results" / f for f in results] + [out / "figures" / f for f in figures]
+
+
+@pytest.mark.slow
+def test_smoke_reproduction_runs_every_notebook(tmp_path):
+    run = subprocess.run(
+        [sys.executable, "-m", "anseg.reproduce", "--smoke", "--out", str(tmp_path)],
+        cwd=REPO, env=os.environ.copy(), capture_output=True, text=True, timeout=SMOKE_TIMEOUT_S,
+    )
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+
+    for name in PER_NOTEBOOK:
+        executed = nbformat.read(tmp_path / "notebooks" / name, as_version=4)
+        code = [c for c in executed.cells if c.cell_type == "code"]
+        errors = [o for c in code for o in c.outputs if o.output_type == "error"]
+        assert not errors, f"{name}: {errors[0].ename}: {errors[0].evalue}"
+        assert all(c.execution_count is not None for c in code), f"{name}: a cell did not run"
+
+    missing = [str(p.relative_to(tmp_path)) for p in _expected_files(tmp_path) if not p.is_file()]
+    assert not missing, f"not written: {missing}"
+    record = json.loads((tmp_path / "results" / "table1_psb.json").read_text())
+    assert record["parameters"]["smoke"] is True and record["wall_seconds"] > 0
+    assert record["environment"]["torch"] and record["data"][0]["dataset"] == "synthetic"
+    header = (tmp_path / "results" / "table1_psb.csv").read_text().splitlines()[0]
+    assert "Ours (paper), Table I" in header and "ours, raw area (split 0)" in header
