@@ -7,13 +7,22 @@ and writes the committed outputs: ``notebooks/executed/``, ``figures/`` and
 ``results/``. ``--smoke`` shrinks the synthetic settings further, for CI.
 Each notebook takes its parameters from the table below; nothing else
 differs between the runs.
+
+``--train-only --jobs N`` trains the notebooks' configurations without
+running the notebooks, N at a time, into the same result store
+(``results/runs/<key>.json``, ``models/``). A notebook run afterwards reads
+the stored results instead of training, so a long real run can be spread
+over processes, machines (a GPU box) and sessions.
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -76,6 +85,146 @@ PER_NOTEBOOK = {
 }
 
 
+ABLATION_MODES = ("nonuniform", "uniform", "none")  # Table IV and Fig. 4
+
+
+def notebook_settings(epochs: int, seed: int, device: str, smoke: bool) -> tuple[dict, dict, "TrainConfig"]:
+    """Data set options, SegmentConfig overrides and TrainConfig of a notebook run (its setup cell does the same).
+
+    A smoke run only checks that a notebook runs from end to end: 4 shapes, a tiny model, 2 cycles.
+    """
+    from anseg.train import TrainConfig
+
+    shape_options = {"n_shapes": 4} if smoke else {}
+    segment_options = {"cycles": 2, "clusters": 4} if smoke else {}
+    train = TrainConfig(epochs=epochs, seed=seed, device=device, **({"width": 16, "depth": 1} if smoke else {}))
+    return shape_options, segment_options, train
+
+
+def _notebook_cells(name: str, p: dict) -> list[tuple[str, str | None, int, dict]]:
+    """(data set, category, split, SegmentConfig options) of every result notebook ``name`` asks for."""
+    from anseg import datasets
+    from anseg.datasets import synthetic
+    from anseg.features import ABLATION_SETS
+
+    dataset = p["dataset"]
+    categories = p.get("categories")
+    if categories is None and "categories" in p:
+        categories = list(synthetic.CATEGORIES if dataset == "synthetic" else datasets.PSB_CATEGORIES)
+    if name == "table1_psb.ipynb":
+        return [(dataset, c, s, {}) for c in categories for s in p["splits"]]
+    if name == "table2_coseg.ipynb":
+        return [(c, None, 0, {}) if c in datasets.DATASETS else (dataset, c, 0, {}) for c in categories]
+    if name == "table3_human.ipynb":
+        return [(dataset, p["category"], 0, {})]
+    if name == "table4_ablation.ipynb":
+        return [(dataset, c, 0, {"mode": m}) for c in categories for m in ABLATION_MODES]
+    if name == "fig11_cycles_ratio.ipynb":
+        return [(dataset, c, 0, {"cycles": n, "ratio": r}) for c in categories for r in p["ratios"] for n in p["cycles_list"]]
+    if name == "fig12_features.ipynb":
+        return [(dataset, c, 0, {"groups": g}) for c in categories for g in ABLATION_SETS.values()]
+    if name == "fig4_attention.ipynb":
+        return [(dataset, p["category"], 0, {"mode": m}) for m in ABLATION_MODES]
+    if name == "explore.ipynb":
+        return [] if p.get("model_path") else [(dataset, p["category"], 0, {})]
+    raise ValueError(f"no plan for notebook {name}")
+
+
+def planned_experiments(kind: str, only: list[str] | None = None) -> list[tuple["Experiment", dict]]:
+    """Every (Experiment, data set options) the notebooks of ``kind`` train, without repeats, costliest first."""
+    from anseg.pipeline import SegmentConfig
+    from anseg.train import Experiment
+
+    plan = {}
+    for name in _selected(only):
+        p = {**COMMON[kind], **PER_NOTEBOOK[name][kind]}
+        shape_options, segment_options, train = notebook_settings(p["epochs"], p["seed"], p["device"], p["smoke"])
+        for data, category, split, options in _notebook_cells(name, p):
+            experiment = Experiment(data, category, split, SegmentConfig(**{**segment_options, **options}), train)
+            extra = shape_options if data == "synthetic" else {}
+            plan.setdefault(experiment.key(extra), (experiment, extra))
+    # Attention-driven runs are the slowest (a collapse every few epochs), runs without collapse the fastest.
+    cost = {"nonuniform": 0, "uniform": 1, "none": 2}
+    return sorted(plan.values(), key=lambda item: cost[item[0].segment.mode])
+
+
+def _selected(only: list[str] | None) -> list[str]:
+    return [n for n in PER_NOTEBOOK if not only or any(o in n for o in only)]
+
+
+def _describe(experiment) -> str:
+    where = "/".join(str(x) for x in (experiment.dataset, experiment.category) if x is not None)
+    s = experiment.segment
+    return f"{where} split {experiment.split_index} {s.mode} N={s.cycles} r={s.ratio} groups={'+'.join(s.groups)}"
+
+
+def _precompute_features(plan, jobs: int) -> None:
+    """Fill the feature cache for every mesh of the plan with all ``jobs`` processes, before training starts."""
+    from anseg import datasets, features
+
+    wanted = {}
+    for experiment, extra in plan:
+        key = (experiment.dataset, experiment.category, experiment.split_index if experiment.dataset == "synthetic" else 0,
+               experiment.segment.groups, tuple(sorted(extra.items())))
+        wanted[key] = (experiment, extra)
+    for (data, category, split, groups, _), (experiment, extra) in wanted.items():
+        meshes = [m.mesh for m in datasets.load(data, category, "all", split, progress=False, **extra)]
+        features.compute_many(meshes, groups, workers=jobs, progress=False)
+
+
+def _train_one(experiment, extra: dict, out_dir: str) -> dict:
+    """Worker: one experiment on one CPU thread (many run side by side)."""
+    import torch
+
+    from anseg.train import run_experiment
+
+    torch.set_num_threads(1)
+    return run_experiment(experiment, out_dir=out_dir, progress=False, **extra)
+
+
+def train_only(kind: str, only: list[str] | None, out: Path | None, jobs: int, stop_after: float | None = None) -> int:
+    """Train (or find stored) every planned experiment, ``jobs`` at a time; returns the number that failed.
+
+    With ``stop_after`` (seconds), no run starts after that time; the runs under way finish.
+    """
+    _, results_root = output_dirs(kind, out)
+    plan = planned_experiments(kind, only)
+    todo = [(e, x) for e, x in plan if not (results_root / "results" / "runs" / f"{e.key(x)}.json").is_file()]
+    print(f"[anseg] {len(plan)} planned runs, {len(plan) - len(todo)} already stored, {len(todo)} to train "
+          f"with {jobs} job(s) -> {results_root}", flush=True)
+    if not todo:
+        return 0
+    started = time.time()
+    _precompute_features(todo, jobs)
+    print(f"[anseg] features ready after {time.time() - started:.0f} s", flush=True)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the workers: one thread each
+    failed = finished = 0
+    waiting = list(reversed(todo))  # pop() takes the costliest first
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(jobs, mp_context=context) as pool:
+        running = {}
+        while waiting or running:
+            while waiting and len(running) < jobs and (stop_after is None or time.time() - started < stop_after):
+                experiment, extra = waiting.pop()
+                running[pool.submit(_train_one, experiment, extra, str(results_root))] = experiment
+            if not running:
+                break
+            job = next(as_completed(running))
+            experiment = running.pop(job)
+            finished += 1
+            try:
+                result = job.result()
+            except Exception as exc:  # report and go on: the other runs are still worth having
+                failed += 1
+                print(f"[anseg] {finished}/{len(todo)} FAILED {_describe(experiment)}: {exc}", file=sys.stderr, flush=True)
+                continue
+            print(f"[anseg] {finished}/{len(todo)} {_describe(experiment)}: {100 * result['accuracy']['unit_area']:.2f} % "
+                  f"(train {result['train_seconds']:.0f} s; {time.time() - started:.0f} s so far)", flush=True)
+    if waiting:
+        print(f"[anseg] stopped after {stop_after:.0f} s: {len(waiting)} run(s) not started", flush=True)
+    return failed
+
+
 def output_dirs(kind: str, out: Path | None) -> tuple[Path, Path]:
     """Where executed notebooks and their figures/results go for a run kind."""
     if kind == "real" and out is None:
@@ -90,7 +239,7 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
 
     executed_dir, results_root = output_dirs(kind, out)
     executed_dir.mkdir(parents=True, exist_ok=True)
-    names = [n for n in PER_NOTEBOOK if not only or any(o in n for o in only)]
+    names = _selected(only)
     failed = 0
     for name in names:
         params = {**COMMON[kind], **PER_NOTEBOOK[name][kind], "output_dir": str(results_root)}
@@ -120,13 +269,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="*", help="run only the notebooks whose file name contains one of these strings")
     parser.add_argument("--out", type=Path, help="write here instead of the default folder of the run kind")
     parser.add_argument("--kernel", default=None, help="Jupyter kernel name (default: the notebook's own)")
+    parser.add_argument("--train-only", action="store_true",
+                        help="train the notebooks' configurations into the result store; run no notebook")
+    parser.add_argument("--jobs", type=int, default=1, help="with --train-only: runs side by side (default: 1)")
+    parser.add_argument("--stop-after", type=float, metavar="MINUTES",
+                        help="with --train-only: start no run after this many minutes (the runs under way finish)")
     args = parser.parse_args(argv)
     if args.smoke and args.data == "real":
         parser.error("--smoke runs on synthetic data only")
+    if args.jobs < 1:
+        parser.error("--jobs must be at least 1")
     kind = "smoke" if args.smoke else args.data
-    failed = run(kind, args.only, args.out, args.kernel)
+    if args.train_only:
+        failed = train_only(kind, args.only, args.out, args.jobs, args.stop_after and 60 * args.stop_after)
+        what = "run(s)"
+    else:
+        failed = run(kind, args.only, args.out, args.kernel)
+        what = "notebook(s)"
     if failed:
-        print(f"[anseg] {failed} notebook(s) failed", file=sys.stderr)
+        print(f"[anseg] {failed} {what} failed", file=sys.stderr)
     return 1 if failed else 0
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from anseg.reproduce import COMMON, NOTEBOOKS, PER_NOTEBOOK, REPO
+from anseg.reproduce import COMMON, NOTEBOOKS, PER_NOTEBOOK, REPO, planned_experiments
 
 SMOKE_TIMEOUT_S = 1800  # about 4 minutes on a 2-core CPU; the margin is for a loaded machine
 
@@ -70,3 +70,21 @@ def test_smoke_reproduction_runs_every_notebook(tmp_path):
     assert record["environment"]["torch"] and record["data"][0]["dataset"] == "synthetic"
     header = (tmp_path / "results" / "table1_psb.csv").read_text().splitlines()[0]
     assert "Ours (paper), Table I" in header and "ours, raw area (split 0)" in header
+
+    # the plan that --train-only works through is exactly what the notebooks trained
+    trained = {p.stem for p in (tmp_path / "results" / "runs").glob("*.json")}
+    assert trained == {experiment.key(options) for experiment, options in planned_experiments("smoke")}
+
+
+def test_real_plan_covers_every_table_once():
+    plan = planned_experiments("real")
+    keys = [experiment.key(options) for experiment, options in plan]
+    assert len(keys) == len(set(keys))
+    psb = [e for e, _ in plan if e.dataset == "psb"]
+    # Table I 16 x 5, Table IV's uniform and none on 3 categories, Fig. 11's 30 minus the default, Fig. 12's 12
+    assert len(psb) == 80 + 6 + 29 + 12
+    assert {e.dataset for e, _ in plan} == {"psb", "coseg_aliens", "coseg_chairs", "coseg_vases", "human_seg"}
+    assert [e.segment.mode for e, _ in plan][-1] == "none"  # costliest first
+    only = planned_experiments("real", only=["table4"])
+    assert sorted((e.category, e.segment.mode) for e, _ in only) == sorted(
+        (c, m) for c in ("Human", "Teddy", "Airplane") for m in ("nonuniform", "uniform", "none"))
