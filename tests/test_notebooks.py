@@ -12,7 +12,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from anseg.reproduce import COMMON, NOTEBOOKS, PER_NOTEBOOK, REPO, planned_experiments
+from anseg.reproduce import COMMON, HEADLINE_END, HEADLINE_START, NOTEBOOKS, PER_NOTEBOOK, REPO, headline, planned_experiments
 
 SMOKE_TIMEOUT_S = 1800  # about 4 minutes on a 2-core CPU; the margin is for a loaded machine
 
@@ -88,3 +88,11 @@ def test_real_plan_covers_every_table_once():
     only = planned_experiments("real", only=["table4"])
     assert sorted((e.category, e.segment.mode) for e, _ in only) == sorted(
         (c, m) for c in ("Human", "Teddy", "Airplane") for m in ("nonuniform", "uniform", "none"))
+
+
+def test_readme_headline_is_the_committed_results():
+    if not (REPO / "results" / "table4_ablation.csv").is_file():
+        pytest.skip("no real-run results committed yet (results/table4_ablation.csv)")
+    text = (REPO / "README.md").read_text()
+    block = text[text.index(HEADLINE_START) + len(HEADLINE_START):text.index(HEADLINE_END)]
+    assert block.strip() == headline(REPO / "results").strip()
