@@ -391,8 +391,11 @@ def _corner_edge_length2(vertices, faces, corner):
 
 
 @njit(cache=True)
-def _downsample_core(vertices, faces, scores, shortest_edge_first, target, cos_max, min_quality):
+def _downsample_core(vertices, faces, scores, shortest_edge_first, target, cos_max, min_quality, once_per_pass=False):
     """Collapse until ``target`` faces (or one above) are alive or no valid collapse is left.
+
+    ``once_per_pass`` (score order only): a face changed by a collapse (one
+    around the kept vertex) takes part in no other collapse of the same pass.
 
     ``vertices`` and ``faces`` are modified in place; returns the alive flags,
     the record arrays truncated to the collapses made and the count of refused attempts.
@@ -419,13 +422,16 @@ def _downsample_core(vertices, faces, scores, shortest_edge_first, target, cos_m
 
     if not shortest_edge_first:
         order = np.argsort(scores, kind="mergesort")
+        touched_in = np.full(n_faces, -1, np.int64)  # the pass in which a collapse last changed the face
+        n_pass = 0
         while n_alive - target >= 2:
             collapses_before_pass = t
+            n_pass += 1
             for i in range(n_faces):
                 if n_alive - target < 2:
                     break
                 f = order[i]
-                if not alive[f]:
+                if not alive[f] or touched_in[f] == n_pass:
                     continue
                 g0 = _face_across(faces, alive, head, nxt, f, faces[f, 0], faces[f, 1])
                 g1 = _face_across(faces, alive, head, nxt, f, faces[f, 1], faces[f, 2])
@@ -441,12 +447,19 @@ def _downsample_core(vertices, faces, scores, shortest_edge_first, target, cos_m
                 for g, e in ((g0, e0), (g1, e1), (g2, e2)):
                     if g == -1:
                         break
+                    if touched_in[g] == n_pass:
+                        continue
                     stamp += 1
                     done, corners = _collapse_if_allowed(
                         vertices, faces, alive, head, nxt, mark_u, mark_w, stamp, f, g, faces[f, e], faces[f, (e + 1) % 3],
                         cos_max, min_quality, t, kept, removed, removed_faces, removed_face_vertices, old_positions,
                         neighbors, ptr, corners)
                     if done:
+                        if once_per_pass:
+                            corner = head[kept[t]]
+                            while corner != -1:
+                                touched_in[corner // 3] = n_pass
+                                corner = nxt[corner]
                         t += 1
                         n_alive -= 2
                         break
@@ -659,7 +672,7 @@ class CollapseRecord:
 
 # --------------------------------------------------------------------------- downsampling
 def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonuniform", seed: int = 0,
-               max_normal_flip_deg: float = 60.0) -> tuple[Mesh, CollapseRecord]:
+               max_normal_flip_deg: float = 60.0, once_per_pass: bool = False) -> tuple[Mesh, CollapseRecord]:
     """Collapse edges until ``round(ratio * mesh.n_faces)`` faces are left (or one more).
 
     ``mode``: ``"nonuniform"`` (least ``scores`` first, the paper's attentive
@@ -667,7 +680,11 @@ def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonunif
     first) or ``"random"`` (static random scores from ``seed``). See the
     module docstring for the validity rules. When no valid collapse is left
     before the target, a :class:`CollapseWarning` is issued and
-    ``record.reached_target`` is False. The input mesh must be edge-manifold
+    ``record.reached_target`` is False. ``once_per_pass`` (score-ordered
+    modes): a face that a collapse changed (one around the kept vertex) takes
+    part in no further collapse of the same pass, so a region of low scores
+    thins out over several passes instead of being merged into a few large
+    faces in one. The input mesh must be edge-manifold
     (boundaries and several components are fine); it is not modified.
     Returns the coarse mesh (alive faces in fine-index order, used vertices
     compacted) and the :class:`CollapseRecord`.
@@ -700,7 +717,7 @@ def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonunif
     target = int(round(ratio * n_faces))
     (alive, kept, removed, removed_faces, removed_face_vertices, old_positions, neighbors, ptr, corners,
      refused) = _downsample_core(vertices, faces, scores, mode == "uniform", target,
-                                 float(np.cos(np.radians(max_normal_flip_deg))), MIN_FACE_QUALITY)
+                                 float(np.cos(np.radians(max_normal_flip_deg))), MIN_FACE_QUALITY, once_per_pass)
 
     coarse_face_ids = np.flatnonzero(alive)
     used = np.zeros(mesh.n_vertices, dtype=bool)

@@ -14,10 +14,17 @@ Modes compared:
   below one ring to break ties, recomputed on each level from the pooled labels;
 * ``uniform`` (shortest edge first) and ``random`` (static random scores).
 
+With ``--model MODEL.pt`` (a nonuniform model trained on one PSB category)
+the study runs instead on that category's split-0 TRAINING meshes with the
+model's own attention, recomputed on every level as ``segment`` does, with
+and without ``once_per_pass`` collapsing; it also reports how many input
+faces the largest coarse face stands for (how far a region was wiped out).
+
 Usage::
 
     ANSEG_DATA=/work/shared/datasets ANSEG_CACHE=/tmp/anseg-cache \\
         python benchmarks/roundtrip.py [--categories Teddy Human] [--all-meshes] [--out roundtrip.csv]
+    python benchmarks/roundtrip.py --model models/<key>.pt --categories Human
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ import warnings
 import numpy as np
 
 from anseg import datasets
-from anseg.collapse import CollapseWarning, downsample, one_hot, pool_labels, rings_to_other_label, upsample_through
+from anseg.collapse import CollapseWarning, compose, downsample, one_hot, pool_labels, rings_to_other_label, upsample_through
 from anseg.metrics import pooled_accuracy
 
 MODES = ("nonuniform", "uniform", "random")
@@ -59,6 +66,41 @@ def round_trip(item, mode: str, cycles: int, ratio: float, seed: int) -> tuple[n
     return probs.argmax(axis=1), missed
 
 
+def learned_round_trip(item, model, once_per_pass: bool) -> tuple[np.ndarray, int]:
+    """Fine labels after the trip through the levels the model's attention builds, and the largest coarse face."""
+    import functools
+    from unittest import mock
+
+    from anseg import collapse
+    from anseg.pipeline import build_levels
+
+    n_classes = len(item.label_names)
+    downsample_here = functools.partial(collapse.downsample, once_per_pass=once_per_pass)
+    with mock.patch.object(collapse, "downsample", downsample_here), warnings.catch_warnings():
+        warnings.simplefilter("ignore", CollapseWarning)
+        levels = build_levels(item.mesh, model, model.config)
+    records = [level.record for level in levels[:-1]]
+    coarse_labels = pool_labels(records, item.labels, item.mesh.face_areas, n_classes)
+    probs = upsample_through(records, one_hot(coarse_labels, n_classes))
+    return probs.argmax(axis=1), int(np.bincount(compose(records)).max())
+
+
+def learned_study(model_path: str, categories) -> None:
+    from anseg.pipeline import Segmenter
+
+    model = Segmenter.load(model_path)
+    for category in categories:
+        items = datasets.load("psb", category=category, split="train", split_index=0, progress=False)
+        print(f"{category}: {len(items)} training meshes (split 0), the model's attention, {model.config.cycles} cycles "
+              f"at ratio {model.config.ratio}, no smoothing")
+        for once in (False, True):
+            trips = [learned_round_trip(item, model, once) for item in items]
+            scores = pooled_accuracy([t[0] for t in trips], [i.labels for i in items], [i.mesh.face_areas for i in items])
+            largest = [t[1] for t in trips]
+            print(f"  once_per_pass={once!s:<5}  round trip {100 * scores['unit_area']:6.2f} %   input faces behind the "
+                  f"largest coarse face: median {np.median(largest):.0f}, max {max(largest)}", flush=True)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--categories", nargs="*", default=None, help="PSB categories (default: all 16)")
@@ -68,7 +110,11 @@ def main(argv=None) -> None:
     parser.add_argument("--ratio", type=float, default=0.5)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", help="write the per-category table as CSV here")
+    parser.add_argument("--model", help="study a trained nonuniform model's attention on its training meshes instead")
     args = parser.parse_args(argv)
+    if args.model:
+        learned_study(args.model, args.categories or ["Human"])
+        return
 
     sets = [("psb", c) for c in (args.categories if args.categories is not None else datasets.PSB_CATEGORIES)]
     if not args.no_human:

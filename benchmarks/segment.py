@@ -22,9 +22,9 @@ import subprocess
 import sys
 import time
 from collections import defaultdict
-from contextlib import contextmanager
 
 import numpy as np
+from stages import print_stages, stage_timers
 
 
 def pick_mesh(path: str | None, subdivide: int):
@@ -59,12 +59,11 @@ def quick_model():
     return fit(shapes, shapes[0].label_names, SegmentConfig(), TrainConfig(epochs=1), progress=False)
 
 
-@contextmanager
-def stage_timers(totals: dict):
-    """Wrap the functions behind each stage so that their time adds up in ``totals``."""
+def segment_stages() -> dict:
+    """Stage name: the package function behind it, as (owner, attribute)."""
     import anseg.pipeline as pipeline
 
-    wrapped = {
+    return {
         "cluster + sequence": (pipeline, "layout"),
         "collapse": (pipeline.collapse, "downsample"),
         "coarse features": (pipeline, "coarse_groups"),
@@ -72,24 +71,6 @@ def stage_timers(totals: dict):
         "graph cut": (pipeline, "graph_cut"),
         "network": (pipeline.Segmenter, "__call__"),
     }
-    originals = {}
-    for stage, (owner, name) in wrapped.items():
-        original = getattr(owner, name)
-        originals[stage] = (owner, name, original)
-
-        def timed(*args, _original=original, _stage=stage, **kwargs):
-            start = time.perf_counter()
-            try:
-                return _original(*args, **kwargs)
-            finally:
-                totals[_stage] += time.perf_counter() - start
-
-        setattr(owner, name, timed)
-    try:
-        yield
-    finally:
-        for owner, name, original in originals.values():
-            setattr(owner, name, original)
 
 
 def measure(args) -> None:
@@ -111,7 +92,7 @@ def measure(args) -> None:
         start = time.perf_counter()
         groups = compute_groups(mesh, model.config.groups, cache=False)
         totals["features (level 0)"] = time.perf_counter() - start
-        with stage_timers(totals):
+        with stage_timers(totals, segment_stages()):
             segment(mesh, model, groups=groups)
         totals["total"] = time.perf_counter() - start
         runs.append(totals)
@@ -119,9 +100,7 @@ def measure(args) -> None:
     best = min(runs, key=lambda t: t["total"])
     print(f"mesh: {name}, {mesh.n_faces} faces; config: {model.config.cycles} cycles at ratio {model.config.ratio}, mode {model.config.mode}")
     print(f"torch threads: {torch.get_num_threads()}; best of {args.repeat} runs after a warm-up")
-    print(f"{'stage':<22}{'seconds':>10}")
-    for stage, seconds in sorted(best.items(), key=lambda kv: (kv[0] == "total", -kv[1])):
-        print(f"{stage:<22}{seconds:>10.3f}")
+    print_stages(best)
     print(f"peak resident memory: {peak / 2**20:.2f} GiB (after loading: {baseline / 2**20:.2f} GiB)")
 
 

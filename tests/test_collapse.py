@@ -133,12 +133,13 @@ def run_cycle(mesh, mode, ratio, rng, **options):
 
 # ----------------------------------------------------------------------------- properties
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(mesh=meshes(), mode=st.sampled_from(MODES), ratio=st.floats(0.3, 0.9), seed=st.integers(0, 1000))
-def test_cycles_keep_topology_and_undo_exactly(mesh, mode, ratio, seed):
+@given(mesh=meshes(), mode=st.sampled_from(MODES), ratio=st.floats(0.3, 0.9), seed=st.integers(0, 1000),
+       once_per_pass=st.booleans())
+def test_cycles_keep_topology_and_undo_exactly(mesh, mode, ratio, seed, once_per_pass):
     rng = np.random.default_rng(seed)
     records, current = [], mesh
     for _ in range(2):
-        coarse, record, warned = run_cycle(current, mode, ratio, rng)
+        coarse, record, warned = run_cycle(current, mode, ratio, rng, once_per_pass=once_per_pass)
         check_cycle(current, coarse, record, warned)
         records.append(record)
         current = coarse
@@ -217,6 +218,18 @@ def test_nonuniform_collapses_where_scores_are_low():
     removed = np.zeros(mesh.n_faces, bool)
     removed[record.removed_faces.ravel()] = True
     assert removed[x < -0.3].mean() > 0.6 and removed[x > 0.3].mean() < 0.05
+
+
+def test_once_per_pass_spreads_the_collapses_of_a_low_score_region():
+    rng = np.random.default_rng(4)
+    mesh = bumpy_sphere(3, rng)
+    x = mesh.face_centroids[:, 0]
+    largest = {}
+    for once in (False, True):
+        coarse, record = downsample(mesh, scores=x, ratio=0.6, once_per_pass=once)
+        assert record.reached_target
+        largest[once] = np.bincount(record.fine_to_coarse).max()  # input faces behind the largest coarse face
+    assert largest[True] < largest[False]
 
 
 def test_uniform_collapses_short_edges_first():
