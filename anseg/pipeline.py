@@ -50,7 +50,11 @@ MODES = ("nonuniform", "uniform", "none")
 
 @dataclass
 class SegmentConfig:
-    """The switches of Algorithm 1 (the paper's defaults: 4 cycles at ratio 0.5)."""
+    """The switches of Algorithm 1 (the paper's defaults: 4 cycles at ratio 0.5).
+
+    ``once_per_pass`` is passed to :func:`anseg.collapse.downsample` (off by
+    default, as in the committed results).
+    """
 
     cycles: int = 4
     ratio: float = 0.5
@@ -60,6 +64,7 @@ class SegmentConfig:
     patch_size: int = 16
     smooth_weight: float = 1.0
     combine: str = "all"
+    once_per_pass: bool = False
     seed: int = 0
 
     def __post_init__(self):
@@ -200,7 +205,8 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
             scores = level.attention
         else:
             scores = None
-        current, level.record = collapse.downsample(current, scores, ratio=config.ratio, mode=config.mode, seed=config.seed + index)
+        current, level.record = collapse.downsample(current, scores, ratio=config.ratio, mode=config.mode,
+                                                    seed=config.seed + index, once_per_pass=config.once_per_pass)
         current_groups = coarse_groups(level, current, level.record, config.groups)
     return levels
 

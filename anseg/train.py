@@ -257,6 +257,10 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
     }
 
 
+# SegmentConfig fields introduced after stored results, with the default the older results ran with.
+SETTINGS_ADDED_LATER = {"once_per_pass": False}
+
+
 @dataclass
 class Experiment:
     """One trained-and-evaluated configuration: what a table cell is made of."""
@@ -268,9 +272,14 @@ class Experiment:
     train: TrainConfig = field(default_factory=TrainConfig)
 
     def key(self, dataset_options: dict | None = None) -> str:
-        """A short hash of everything that decides the result, data set options (e.g. ``n_shapes``) included."""
+        """A short hash of everything that decides the result, data set options (e.g. ``n_shapes``) included.
+
+        Settings added after results were stored leave the key alone at their
+        default (:data:`SETTINGS_ADDED_LATER`), so those results keep their keys.
+        """
+        segment = {k: v for k, v in asdict(self.segment).items() if SETTINGS_ADDED_LATER.get(k, object()) != v}
         text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index,
-                           "segment": asdict(self.segment), "train": asdict(self.train),
+                           "segment": segment, "train": asdict(self.train),
                            **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 

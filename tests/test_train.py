@@ -10,7 +10,7 @@ from sklearn.linear_model import LogisticRegression
 from anseg import datasets, features
 from anseg.metrics import pooled_accuracy
 from anseg.pipeline import SegmentConfig
-from anseg.train import TrainConfig, evaluate, feature_statistics, fit
+from anseg.train import Experiment, TrainConfig, evaluate, feature_statistics, fit
 
 SMALL = SegmentConfig(cycles=2, clusters=4, patch_size=16)
 
@@ -76,3 +76,12 @@ def test_feature_statistics_leave_the_level_column():
 def test_rejects_empty_training_set():
     with pytest.raises(ValueError, match="no training meshes"):
         fit([], ["a"], SMALL)
+
+
+def test_experiment_keys_of_committed_results_stay_put():
+    # results/runs/b1e98aa45e21a4b6.json is Table IV's nonuniform Human run: a key change would orphan it
+    experiment = Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(epochs=60, seed=0, device="auto"))
+    assert experiment.key() == "b1e98aa45e21a4b6"
+    changed = Experiment("psb", "Human", 0, SegmentConfig(once_per_pass=True), experiment.train)
+    assert changed.key() != experiment.key()
+    assert Experiment("psb", "Human", 1, experiment.segment, experiment.train).key() != experiment.key()
