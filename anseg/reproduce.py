@@ -261,7 +261,7 @@ def headline(results_dir: Path) -> str:
     coseg = results_dir / "table2_coseg.csv"
     if coseg.is_file():
         table2 = pd.read_csv(coseg, index_col=0)
-        peer_columns = [c for c in table2.columns if not c.startswith(("ours", "n_"))]
+        peer_columns = [c for c in table2.select_dtypes("number").columns if not c.startswith(("ours", "n_"))]
         lines += ["", "COSEG large sets as MeshCNN distributes them ([notebook](notebooks/executed/table2_coseg.ipynb)); "
                   "not the paper's data (its Table II uses the small sets), so compared with peers that report on these:",
                   "", "| set | ours, faces | " + " | ".join(peer_columns) + " |", "|---|---|" + "---|" * len(peer_columns)]

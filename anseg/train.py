@@ -297,6 +297,12 @@ def environment() -> dict:
     }
 
 
+def trained_on(result: dict) -> str:
+    """The machine a stored result was trained on: its GPU, else its CPU count (a notebook may read results made elsewhere)."""
+    env = result["environment"]
+    return env["cuda"] or f"CPU, {env['cpus']} cores"
+
+
 def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike | None = None,
                    progress: bool = True, **dataset_options) -> dict:
     """Train on the split's training meshes, evaluate on its test meshes, and return (and store) the result.

@@ -85,3 +85,10 @@ def test_experiment_keys_of_committed_results_stay_put():
     changed = Experiment("psb", "Human", 0, SegmentConfig(once_per_pass=True), experiment.train)
     assert changed.key() != experiment.key()
     assert Experiment("psb", "Human", 1, experiment.segment, experiment.train).key() != experiment.key()
+
+
+def test_trained_on_names_the_gpu_or_the_cpu_count():
+    from anseg.train import trained_on
+
+    assert trained_on({"environment": {"cuda": "NVIDIA H100 80GB HBM3", "cpus": 16}}) == "NVIDIA H100 80GB HBM3"
+    assert trained_on({"environment": {"cuda": None, "cpus": 2}}) == "CPU, 2 cores"
