@@ -86,7 +86,8 @@ PER_NOTEBOOK = {
 }
 
 
-ABLATION_MODES = ("nonuniform", "uniform", "none")  # Table IV and Fig. 4
+# Table IV and Fig. 4; also the cost order: attention-driven runs collapse every few epochs, "none" never does
+ABLATION_MODES = ("nonuniform", "uniform", "none")
 
 
 def notebook_settings(epochs: int, seed: int, device: str, smoke: bool) -> tuple[dict, dict, "TrainConfig"]:
@@ -140,11 +141,10 @@ def planned_experiments(kind: str, only: list[str] | None = None) -> list[tuple[
     from anseg.train import Experiment
 
     plan = {}
-    cost = {"nonuniform": 0, "uniform": 1, "none": 2}  # attention-driven runs collapse every few epochs: the slowest
     for name in _selected(only):
         p = {**COMMON[kind], **PER_NOTEBOOK[name][kind]}
         shape_options, segment_options, train = notebook_settings(p["epochs"], p["seed"], p["device"], p["smoke"])
-        cells = sorted(_notebook_cells(name, p), key=lambda cell: cost[cell[3].get("mode", "nonuniform")])
+        cells = sorted(_notebook_cells(name, p), key=lambda cell: ABLATION_MODES.index(cell[3].get("mode", "nonuniform")))
         for data, category, split, options in cells:
             experiment = Experiment(data, category, split, SegmentConfig(**{**segment_options, **options}), train)
             extra = shape_options if data == "synthetic" else {}
@@ -192,9 +192,11 @@ def train_only(kind: str, only: list[str] | None, out: Path | None, jobs: int, s
 
     With ``stop_after`` (seconds), no run starts after that time; the runs under way finish.
     """
+    from anseg.train import stored_result_path
+
     _, results_root = output_dirs(kind, out)
     plan = planned_experiments(kind, only)
-    todo = [(e, x) for e, x in plan if not (results_root / "results" / "runs" / f"{e.key(x)}.json").is_file()]
+    todo = [(e, x) for e, x in plan if not stored_result_path(results_root, e.key(x)).is_file()]
     print(f"[anseg] {len(plan)} planned runs, {len(plan) - len(todo)} already stored, {len(todo)} to train "
           f"with {jobs} job(s) -> {results_root}", flush=True)
     if not todo:
@@ -235,6 +237,13 @@ HEADLINE_START = "<!-- headline: written by `python -m anseg.reproduce --data re
 HEADLINE_END = "<!-- /headline -->"
 
 
+def _markdown_row(label, values) -> str:
+    """A table row: numbers with two decimals, missing ones (NaN) left empty."""
+    import pandas as pd
+
+    return f"| {label} | " + " | ".join("" if pd.isna(v) else f"{v:.2f}" for v in values) + " |"
+
+
 def headline(results_dir: Path) -> str:
     """README's headline tables, built from the real run's result files (nothing typed by hand)."""
     import pandas as pd
@@ -250,14 +259,12 @@ def headline(results_dir: Path) -> str:
              "|---|---|---|---|" + "---|" * len(peers)]
     for category, row in table1.iterrows():
         cells = [row[split], row[paper], row[split] - row[paper], *(row[c] for c in peers)]
-        name = f"**{category}**" if category == "mean" else category
-        lines.append(f"| {name} | " + " | ".join("" if pd.isna(v) else f"{v:.2f}" for v in cells) + " |")
+        lines.append(_markdown_row(f"**{category}**" if category == "mean" else category, cells))
     table4 = pd.read_csv(results_dir / "table4_ablation.csv", index_col=0)
-    modes = ("nonuniform", "uniform", "none")
     lines += ["", "Table IV, downsampling ablation on PSB split 0 ([notebook](notebooks/executed/table4_ablation.ipynb)), "
-              "ours (paper):", "", "| category | " + " | ".join(modes) + " |", "|---|---|---|---|"]
+              "ours (paper):", "", "| category | " + " | ".join(ABLATION_MODES) + " |", "|---|---|---|---|"]
     for category, row in table4.iterrows():
-        lines.append(f"| {category} | " + " | ".join(f"{row[f'ours, {m}']:.2f} ({row[f'paper, {m}']:.2f})" for m in modes) + " |")
+        lines.append(f"| {category} | " + " | ".join(f"{row[f'ours, {m}']:.2f} ({row[f'paper, {m}']:.2f})" for m in ABLATION_MODES) + " |")
     coseg = results_dir / "table2_coseg.csv"
     if coseg.is_file():
         table2 = pd.read_csv(coseg, index_col=0)
@@ -266,8 +273,7 @@ def headline(results_dir: Path) -> str:
                   "not the paper's data (its Table II uses the small sets), so compared with peers that report on these:",
                   "", "| set | ours, faces | " + " | ".join(peer_columns) + " |", "|---|---|" + "---|" * len(peer_columns)]
         for entry, row in table2.iterrows():
-            cells = [row["ours, faces"], *(row[c] for c in peer_columns)]
-            lines.append(f"| {entry} | " + " | ".join("" if pd.isna(v) else f"{v:.2f}" for v in cells) + " |")
+            lines.append(_markdown_row(entry, [row["ours, faces"], *(row[c] for c in peer_columns)]))
     human = results_dir / "table3_human.csv"
     if human.is_file():
         table3 = pd.read_csv(human)

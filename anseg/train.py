@@ -303,6 +303,11 @@ def trained_on(result: dict) -> str:
     return env["cuda"] or f"CPU, {env['cpus']} cores"
 
 
+def stored_result_path(out_dir: str | os.PathLike, key: str) -> Path:
+    """Where :func:`run_experiment` stores the result of the experiment with ``key``."""
+    return Path(out_dir, "results", "runs", f"{key}.json")
+
+
 def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike | None = None,
                    progress: bool = True, **dataset_options) -> dict:
     """Train on the split's training meshes, evaluate on its test meshes, and return (and store) the result.
@@ -315,7 +320,7 @@ def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike
     from anseg import datasets
 
     key = experiment.key(dataset_options)
-    result_path = Path(out_dir, "results", "runs", f"{key}.json") if out_dir else None
+    result_path = stored_result_path(out_dir, key) if out_dir else None
     if result_path is not None and result_path.is_file():
         return json.loads(result_path.read_text())
     load = dict(category=experiment.category, split_index=experiment.split_index, root=root, **dataset_options)

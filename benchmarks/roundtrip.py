@@ -68,17 +68,14 @@ def round_trip(item, mode: str, cycles: int, ratio: float, seed: int) -> tuple[n
 
 def learned_round_trip(item, model, once_per_pass: bool) -> tuple[np.ndarray, int]:
     """Fine labels after the trip through the levels the model's attention builds, and the largest coarse face."""
-    import functools
-    from unittest import mock
+    from dataclasses import replace
 
-    from anseg import collapse
     from anseg.pipeline import build_levels
 
     n_classes = len(item.label_names)
-    downsample_here = functools.partial(collapse.downsample, once_per_pass=once_per_pass)
-    with mock.patch.object(collapse, "downsample", downsample_here), warnings.catch_warnings():
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", CollapseWarning)
-        levels = build_levels(item.mesh, model, model.config)
+        levels = build_levels(item.mesh, model, replace(model.config, once_per_pass=once_per_pass))
     records = [level.record for level in levels[:-1]]
     coarse_labels = pool_labels(records, item.labels, item.mesh.face_areas, n_classes)
     probs = upsample_through(records, one_hot(coarse_labels, n_classes))
