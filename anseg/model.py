@@ -30,8 +30,7 @@ Choices, and why:
   faces of a mesh is exactly 1** and values compare across meshes of different size.
   It is computed without gradient, except with ``attention_grad=True``: training
   may then supervise it (anseg.train teaches it to mark label boundaries, where the
-  collapse must keep detail), through the dense (heads x T x T) matrix, which is
-  affordable at training sizes (200 MB at 3.5K tokens) and never used for inference.
+  collapse must keep detail); the backward pass runs over the same chunks.
 - **Positional signal**: off by default (``position_frequencies = 0``). The sequence
   is ordered by K-means cluster, and cluster numbers are arbitrary from mesh to mesh, so
   absolute position in the sequence carries no meaning that transfers; it is exposed
@@ -99,29 +98,64 @@ class Output(NamedTuple):
 def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = None) -> torch.Tensor:
     """Attention mass each key receives: softmax(q k^T / sqrt(d)) averaged over queries and heads.
 
-    ``q``, ``k``: (H, T, d). Returns (T,), summing to 1. Scores are formed ``chunk``
-    queries at a time (default: as many as fit in 2^22 scores), so memory is
-    O(H x chunk x T) and the (T x T) matrix never exists whole.
+    ``q``, ``k``: (H, T, d). Returns (T,), summing to 1, differentiable in ``q`` and
+    ``k``. Scores are formed ``chunk`` queries at a time (default: as many as fit in
+    2^22 scores), forward and backward, so memory is O(H x chunk x T) and the
+    (T x T) matrix never exists whole.
     """
     if q.dim() != 3 or q.shape != k.shape:
         raise ValueError(f"q and k must both be (heads, tokens, dim), got {tuple(q.shape)} and {tuple(k.shape)}")
-    heads, n_tokens, dim = q.shape
+    heads, n_tokens, _ = q.shape
     if chunk is None:
         chunk = max(1, _CHUNK_ELEMENTS // (heads * n_tokens))
     if chunk < 1:
         raise ValueError(f"chunk must be >= 1, got {chunk}")
-    with torch.no_grad():
-        q = q.float() * (1.0 / math.sqrt(dim))
-        keys = k.float().transpose(1, 2)
+    return _ReceivedAttention.apply(q, k, chunk)
+
+
+class _ReceivedAttention(torch.autograd.Function):
+    """received_attention with a hand-written backward over the same chunks.
+
+    Autograd through the dense matrix made ~10 passes over H x T x T floats per
+    step and dominated training time; here each chunk is recomputed from the
+    saved log-sum-exp of its rows and stays in cache. With A = softmax(S) and
+    g the incoming gradient of the mass, dL/dS_hij = A_hij (g_j - sum_k A_hik g_k) / (H T).
+    """
+
+    @staticmethod
+    def forward(ctx, q, k, chunk):
+        heads, n_tokens, dim = q.shape
+        queries, keys = q * (1.0 / math.sqrt(dim)), k.transpose(1, 2)
         mass = q.new_zeros(1, n_tokens)
+        log_sum_exp = q.new_empty(heads, n_tokens, 1)
         for start in range(0, n_tokens, chunk):
             # Softmax in place, its row normalisation folded into the column sum as one
             # (1 x chunk) @ (chunk x T) product per head: no second copy of the chunk.
-            weights = torch.matmul(q[:, start : start + chunk], keys)
-            weights.sub_(weights.amax(dim=-1, keepdim=True)).exp_()
-            inverse_row_sums = weights.sum(dim=-1, keepdim=True).reciprocal_()
-            mass += torch.matmul(inverse_row_sums.transpose(1, 2), weights).sum(dim=0)
-    return mass[0] / (heads * n_tokens)
+            weights = torch.matmul(queries[:, start : start + chunk], keys)
+            row_max = weights.amax(dim=-1, keepdim=True)
+            row_sums = weights.sub_(row_max).exp_().sum(dim=-1, keepdim=True)
+            log_sum_exp[:, start : start + chunk] = row_max + row_sums.log()
+            mass += torch.matmul(row_sums.reciprocal_().transpose(1, 2), weights).sum(dim=0)
+        ctx.save_for_backward(q, k, log_sum_exp)
+        ctx.chunk = chunk
+        return mass[0] / (heads * n_tokens)
+
+    @staticmethod
+    def backward(ctx, grad_mass):
+        q, k, log_sum_exp = ctx.saved_tensors
+        heads, n_tokens, dim = q.shape
+        scale = 1.0 / math.sqrt(dim)
+        queries, keys = q * scale, k.transpose(1, 2)
+        g = grad_mass / (heads * n_tokens)
+        grad_q, grad_k = torch.empty_like(q), torch.zeros_like(k)
+        for start in range(0, n_tokens, ctx.chunk):
+            stop = min(start + ctx.chunk, n_tokens)
+            weights = torch.matmul(queries[:, start:stop], keys).sub_(log_sum_exp[:, start:stop]).exp_()
+            row_dot = torch.matmul(weights, g.unsqueeze(1))  # sum_k A_ik g_k, (H, chunk, 1)
+            grad_scores = (weights * g).sub_(weights.mul_(row_dot))
+            grad_q[:, start:stop] = torch.matmul(grad_scores, k) * scale
+            grad_k += torch.matmul(grad_scores.transpose(1, 2), q[:, start:stop]) * scale
+        return grad_q, grad_k, None
 
 
 def to_patches(
@@ -280,9 +314,7 @@ class AttentionSegmenter(nn.Module):
         context = self.norm_out(h).unsqueeze(1).expand(-1, patch_size, -1)
         logits = self.head(torch.cat([embedded, context], dim=-1))
         if attention_grad:
-            scores = torch.matmul(q, k.transpose(1, 2)) / math.sqrt(q.shape[-1])
-            mass = torch.softmax(scores, dim=-1).mean(dim=(0, 1))
-            return logits, mass.unsqueeze(1) * share * mask.sum()
+            return logits, received_attention(q, k).unsqueeze(1) * share * mask.sum()
         if not need_attention:
             return logits, None
         with torch.no_grad():

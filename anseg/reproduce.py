@@ -43,8 +43,7 @@ EXPLORE_DEFAULTS = {"mesh_path": None, "model_path": None, "interactive": False}
 
 PER_NOTEBOOK = {
     "table1_psb.ipynb": {
-        # Splits 1-4 wait for compute (issue 5's closing note): the runs are resumable, add them here.
-        "real": {"categories": None, "splits": [0]},
+        "real": {"categories": None, "splits": [0, 1, 2, 3, 4]},
         "synthetic": {"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1]},
         "smoke": {"categories": ["figure"], "splits": [0]},
     },
@@ -114,7 +113,7 @@ def _notebook_cells(name: str, p: dict) -> list[tuple[str, str | None, int, dict
     if categories is None and "categories" in p:
         categories = list(synthetic.CATEGORIES if dataset == "synthetic" else datasets.PSB_CATEGORIES)
     if name == "table1_psb.ipynb":
-        return [(dataset, c, s, {}) for c in categories for s in p["splits"]]
+        return [(dataset, c, s, {}) for s in p["splits"] for c in categories]  # split by split: each finishes whole
     if name == "table2_coseg.ipynb":
         return [(c, None, 0, {}) if c in datasets.DATASETS else (dataset, c, 0, {}) for c in categories]
     if name == "table3_human.ipynb":

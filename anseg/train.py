@@ -323,7 +323,8 @@ def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike
     result_path = stored_result_path(out_dir, key) if out_dir else None
     if result_path is not None and result_path.is_file():
         return json.loads(result_path.read_text())
-    load = dict(category=experiment.category, split_index=experiment.split_index, root=root, **dataset_options)
+    load = dict(category=experiment.category, split_index=experiment.split_index, root=root, progress=progress,
+                **dataset_options)
     train_set = datasets.load(experiment.dataset, split="train", **load)
     test_set = datasets.load(experiment.dataset, split="test", **load)
     label_names = train_set[0].label_names
