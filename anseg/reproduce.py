@@ -249,15 +249,21 @@ def headline(results_dir: Path) -> str:
 
     table1 = pd.read_csv(results_dir / "table1_psb.csv", index_col=0)
     split = next(c for c in table1.columns if c.startswith("ours, unit area (split"))
+    over_splits = next(c for c in table1.columns if c.startswith("ours, unit area, mean of"))
+    n_splits = int(over_splits.split("mean of ")[1].split()[0])
+    more = [over_splits, "ours, std over splits"] if n_splits > 1 else []
     paper = "Ours (paper), Table I"
     peers = [c for c in table1.columns if c.endswith("our data, split 0") and table1[c].notna().any()]
     lines = [f"PSB, Table I ([notebook](notebooks/executed/table1_psb.ipynb)): Eq. 5 with unit area, "
              f"{split.split('(')[1].rstrip(')')}, graph cut on; beside ours the paper's column and the reference "
-             "points DESIGN.md measured on exactly our data.",
-             "", "| category | ours | paper | ours − paper | " + " | ".join(c.split(",")[0] for c in peers) + " |",
-             "|---|---|---|---|" + "---|" * len(peers)]
+             "points DESIGN.md measured on exactly our data (split 0)."
+             + (f" Then our mean over {n_splits} splits and its standard deviation (in the mean row: the spread of "
+                "the 16-category mean from split to split)." if more else ""),
+             "", "| category | ours | paper | ours − paper | " + " | ".join(c.split(",")[0] for c in peers)
+             + (f" | ours, {n_splits} splits | std" if more else "") + " |",
+             "|---|---|---|---|" + "---|" * (len(peers) + len(more))]
     for category, row in table1.iterrows():
-        cells = [row[split], row[paper], row[split] - row[paper], *(row[c] for c in peers)]
+        cells = [row[split], row[paper], row[split] - row[paper], *(row[c] for c in peers + more)]
         lines.append(_markdown_row(f"**{category}**" if category == "mean" else category, cells))
     table4 = pd.read_csv(results_dir / "table4_ablation.csv", index_col=0)
     lines += ["", "Table IV, downsampling ablation on PSB split 0 ([notebook](notebooks/executed/table4_ablation.ipynb)), "
