@@ -96,3 +96,21 @@ def test_readme_headline_is_the_committed_results():
     text = (REPO / "README.md").read_text()
     block = text[text.index(HEADLINE_START) + len(HEADLINE_START):text.index(HEADLINE_END)]
     assert block.strip() == headline(REPO / "results").strip()
+
+
+def test_headline_adds_the_mean_over_splits_when_there_are_several(tmp_path):
+    import pandas as pd
+
+    if not (REPO / "results" / "table4_ablation.csv").is_file():
+        pytest.skip("no real-run results committed yet (results/table4_ablation.csv)")
+    table1 = pd.read_csv(REPO / "results" / "table1_psb.csv", index_col=0)
+    single = next(c for c in table1.columns if c.startswith("ours, unit area, mean of"))
+    table1 = table1.rename(columns={single: "ours, unit area, mean of 3 split(s)"})
+    table1["ours, unit area, mean of 3 split(s)"] = 50.0
+    table1["ours, std over splits"] = 1.5
+    table1.to_csv(tmp_path / "table1_psb.csv")
+    (tmp_path / "table4_ablation.csv").write_text((REPO / "results" / "table4_ablation.csv").read_text())
+    lines = headline(tmp_path).splitlines()
+    header = next(line for line in lines if line.startswith("| category | ours |"))
+    assert header.endswith("| ours, 3 splits | std |")
+    assert next(line for line in lines if line.startswith("| **mean** |")).endswith("| 50.00 | 1.50 |")
