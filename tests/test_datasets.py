@@ -138,7 +138,8 @@ def psb_folder(root: Path, category: str, ids, parts_of) -> Path:
 
 
 def test_psb_split_follows_the_shuffle_rule_of_its_protocol():
-    for split_index in range(5):
+    assert datasets.PSB_SPLIT_COUNT == 5
+    for split_index in range(datasets.PSB_SPLIT_COUNT):
         for category in datasets.PSB_CATEGORIES:
             chosen = datasets.psb_split(category, split_index)
             ids = sorted(chosen["train"] + chosen["test"])

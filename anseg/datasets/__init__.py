@@ -172,11 +172,12 @@ def progress_bar(items, description: str, enabled: bool = True):
 
 # the readers are imported last: they use the definitions above
 from anseg.datasets import coseg, maron, meshcnn, psb  # noqa: E402
-from anseg.datasets.psb import PSB_CATEGORIES, psb_split  # noqa: E402
+from anseg.datasets.psb import PSB_CATEGORIES, PSB_SPLIT_COUNT, psb_split  # noqa: E402
 
 __all__ = [
     "DATASETS",
     "PSB_CATEGORIES",
+    "PSB_SPLIT_COUNT",
     "SPLITS",
     "DatasetError",
     "LabeledMesh",

@@ -38,6 +38,7 @@ def _splits() -> list[dict]:
 
 
 PSB_CATEGORIES = tuple(sorted(_splits()[0]))
+PSB_SPLIT_COUNT = len(_splits())
 
 
 def psb_split(category: str, split_index: int = 0) -> dict[str, list[int]]:
