@@ -43,8 +43,7 @@ EXPLORE_DEFAULTS = {"mesh_path": None, "model_path": None, "interactive": False}
 
 PER_NOTEBOOK = {
     "table1_psb.ipynb": {
-        # Splits 3 and 4 wait for compute; their runs so far are stored. Add them here and train-only resumes.
-        "real": {"categories": None, "splits": [0, 1, 2]},
+        "real": {"categories": None, "splits": [0, 1, 2, 3, 4]},
         "synthetic": {"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1]},
         "smoke": {"categories": ["figure"], "splits": [0]},
     },
