@@ -64,11 +64,9 @@ original faces on coarse levels (the pipeline does that pooling).
 from __future__ import annotations
 
 import hashlib
-import multiprocessing
 import os
 import warnings
 from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, fields
 from functools import cached_property
 from pathlib import Path
@@ -78,6 +76,7 @@ from numba import njit, prange
 
 from anseg.cache import atomic_write, cache_dir
 from anseg.mesh import Mesh, MeshError
+from anseg.parallel import run_parallel
 
 FEATURES_VERSION = 1
 
@@ -629,9 +628,8 @@ def compute_many(
     process alone when they total under ``POOL_MIN_FACES`` faces (starting
     a worker costs seconds of imports); 1 always runs here, 2 or more always
     use a pool. Cached meshes are read here without starting workers.
-    Workers are spawned (forking is unsafe once torch, numba or OpenMP
-    threads exist), so a script that calls this needs the ``if __name__ ==
-    "__main__":`` guard.
+    The pool is :func:`anseg.parallel.run_parallel`'s, so a plain script
+    needs no ``if __name__ == "__main__":`` guard.
     """
     from tqdm.auto import tqdm
 
@@ -652,20 +650,13 @@ def compute_many(
     if workers is None:
         small = sum(meshes[i].n_faces for i in todo) < POOL_MIN_FACES
         workers = 1 if small else min(os.cpu_count() or 1, len(todo))
+    calls = [(_compute_arrays, (meshes[i].vertices, meshes[i].faces, groups, cache, settings)) for i in todo]
     with tqdm(total=len(meshes), initial=len(meshes) - len(todo), desc="features", disable=not progress) as bar:
-        if workers == 1 or len(todo) <= 1:
-            for i in todo:
-                results[i] = compute(meshes[i], groups, cache=cache, **settings)
-                bar.update()
-        else:
-            context = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(min(workers, len(todo)), mp_context=context) as pool:
-                jobs = {
-                    pool.submit(_compute_arrays, meshes[i].vertices, meshes[i].faces, groups, cache, settings): i for i in todo
-                }
-                for job in as_completed(jobs):
-                    results[jobs[job]] = job.result()
-                    bar.update()
+        for index, matrix in run_parallel(calls, workers):
+            if isinstance(matrix, Exception):
+                raise matrix
+            results[todo[index]] = matrix
+            bar.update()
     return results
 
 

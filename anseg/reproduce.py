@@ -18,11 +18,8 @@ over processes, machines (a GPU box) and sessions.
 from __future__ import annotations
 
 import argparse
-import multiprocessing
-import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -177,12 +174,9 @@ def _precompute_features(plan, jobs: int) -> None:
 
 
 def _train_one(experiment, extra: dict, out_dir: str) -> dict:
-    """Worker: one experiment on one CPU thread (many run side by side)."""
-    import torch
-
+    """One experiment, quietly (many run side by side)."""
     from anseg.train import run_experiment
 
-    torch.set_num_threads(1)
     return run_experiment(experiment, out_dir=out_dir, progress=False, **extra)
 
 
@@ -191,6 +185,7 @@ def train_only(kind: str, only: list[str] | None, out: Path | None, jobs: int, s
 
     With ``stop_after`` (seconds), no run starts after that time; the runs under way finish.
     """
+    from anseg.parallel import run_parallel
     from anseg.train import stored_result_path
 
     _, results_root = output_dirs(kind, out)
@@ -203,32 +198,20 @@ def train_only(kind: str, only: list[str] | None, out: Path | None, jobs: int, s
     started = time.time()
     _precompute_features(todo, jobs)
     print(f"[anseg] features ready after {time.time() - started:.0f} s", flush=True)
-    for threads in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS"):  # inherited by the workers: one thread each
-        os.environ.setdefault(threads, "1")
+    calls = [(_train_one, (experiment, extra, str(results_root))) for experiment, extra in todo]
+    remaining = stop_after and max(0.0, stop_after - (time.time() - started))
     failed = finished = 0
-    waiting = list(reversed(todo))  # pop() takes the costliest first
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(jobs, mp_context=context) as pool:
-        running = {}
-        while waiting or running:
-            while waiting and len(running) < jobs and (stop_after is None or time.time() - started < stop_after):
-                experiment, extra = waiting.pop()
-                running[pool.submit(_train_one, experiment, extra, str(results_root))] = experiment
-            if not running:
-                break
-            job = next(as_completed(running))
-            experiment = running.pop(job)
-            finished += 1
-            try:
-                result = job.result()
-            except Exception as exc:  # report and go on: the other runs are still worth having
-                failed += 1
-                print(f"[anseg] {finished}/{len(todo)} FAILED {_describe(experiment)}: {exc}", file=sys.stderr, flush=True)
-                continue
-            print(f"[anseg] {finished}/{len(todo)} {_describe(experiment)}: {100 * result['accuracy']['unit_area']:.2f} % "
-                  f"(train {result['train_seconds']:.0f} s; {time.time() - started:.0f} s so far)", flush=True)
-    if waiting:
-        print(f"[anseg] stopped after {stop_after:.0f} s: {len(waiting)} run(s) not started", flush=True)
+    for index, result in run_parallel(calls, jobs, stop_after=remaining):
+        experiment = todo[index][0]
+        finished += 1
+        if isinstance(result, Exception):  # report and go on: the other runs are still worth having
+            failed += 1
+            print(f"[anseg] {finished}/{len(todo)} FAILED {_describe(experiment)}: {result}", file=sys.stderr, flush=True)
+            continue
+        print(f"[anseg] {finished}/{len(todo)} {_describe(experiment)}: {100 * result['accuracy']['unit_area']:.2f} % "
+              f"(train {result['train_seconds']:.0f} s; {time.time() - started:.0f} s so far)", flush=True)
+    if finished < len(todo):
+        print(f"[anseg] stopped after {stop_after:.0f} s: {len(todo) - finished} run(s) not started", flush=True)
     return failed
 
 

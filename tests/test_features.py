@@ -248,7 +248,9 @@ def test_compute_many_keeps_small_jobs_in_this_process(cache_root, monkeypatch):
     def no_pool(*args, **kwargs):
         raise AssertionError("started a process pool for a small job")
 
-    monkeypatch.setattr(features, "ProcessPoolExecutor", no_pool)
+    from anseg import parallel
+
+    monkeypatch.setattr(parallel, "_pooled", no_pool)
     meshes = [blob(), grid_mesh(5)]
     got = features.compute_many(meshes, progress=False, cache=False, **FAST)
     for mesh, x in zip(meshes, got):

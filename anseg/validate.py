@@ -1,0 +1,356 @@
+"""Cross-validation on TRAINING meshes: how a default is chosen (never on a test split).
+
+    python -m anseg.validate --study scale --arm default --arm "relative:local_scale=relative" \\
+        [--categories Hand Vase ...] [--folds 3] [--use-folds 0 1 2] [--seeds 0 1] [--jobs 1]
+
+The training meshes of one fixed PSB split (split 0 by default) are cut into
+``folds`` folds (mesh ``i`` of the split's training list goes to fold
+``i % folds``: 12 meshes give 3 folds of 8 train / 4 held out). Every *arm*
+(a named set of overrides of :class:`SegmentConfig` and, with a ``train.``
+prefix, :class:`TrainConfig`) is trained on each fold's other meshes and
+scored on its held-out ones, once per seed, on a development suite of
+categories (:data:`DEV_SUITE`: the weakest categories and one easy control).
+The test meshes of the split are never read: only ``split="train"`` is
+loaded (a test checks that).
+
+Each cell (arm x category x fold x seed) is keyed like an experiment
+(:meth:`Experiment.key`, the fold in the data options) and stored under
+``<out>/runs/<key>.json`` as it finishes, so a study resumes where it stopped.
+Settings that act only when a trained model segments (:data:`INFERENCE_ONLY`:
+the graph cut's weight, how levels are combined) do not retrain: the cell
+reuses the model of the same training settings, kept under ``<out>/models``
+(not committed).
+
+The report (printed, and written as CSV under ``<out>``) gives per arm and
+category the mean held-out accuracy (Eq. 5, unit area, graph cut as the arm
+sets it), the suite mean (the mean over categories) with the spread of that
+mean over the fold x seed replicates, and for each arm against the baseline
+the paired difference: per (category, fold) the mean over seeds of arm minus
+baseline, averaged, with a 95 % percentile interval from a two-stage
+bootstrap (categories resampled with replacement, then the folds inside each
+drawn category). The decision rule: adopt when the interval excludes 0 and
+the mean is positive.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+
+import numpy as np
+
+from anseg.cache import atomic_write
+from anseg.pipeline import SegmentConfig, Segmenter
+from anseg.train import Experiment, TrainConfig, environment, evaluate, fit
+
+DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane", "Bird", "Teddy")
+# SegmentConfig fields that change only how a trained model segments, not the training.
+INFERENCE_ONLY = ("smooth_weight", "combine")
+DEFAULT_OUT = Path("results", "validation")
+BOOTSTRAP_SAMPLES = 10_000
+
+
+@dataclass(frozen=True)
+class Arm:
+    """A named configuration: overrides of SegmentConfig and TrainConfig fields."""
+
+    name: str
+    segment: dict = field(default_factory=dict)
+    train: dict = field(default_factory=dict)
+
+    @classmethod
+    def parse(cls, text: str) -> "Arm":
+        """``"name:field=value,train.field=value"``; a bare ``name`` (e.g. ``default``) has no overrides."""
+        name, _, spec = text.partition(":")
+        if not name:
+            raise ValueError(f"arm {text!r} has no name; write name:field=value,...")
+        segment, train = parse_overrides(spec)
+        return cls(name, segment, train)
+
+    def configs(self, epochs: int | None = None) -> tuple[SegmentConfig, TrainConfig]:
+        train = {**({"epochs": epochs} if epochs else {}), **self.train}
+        return SegmentConfig(**self.segment), TrainConfig(**train)
+
+
+def parse_overrides(text: str) -> tuple[dict, dict]:
+    """``"once_per_pass=true,train.width=128"`` -> (SegmentConfig, TrainConfig) keyword arguments, typed like the defaults."""
+    defaults = {"": SegmentConfig(), "train.": TrainConfig()}
+    types = {prefix + f.name: type(getattr(config, f.name)) for prefix, config in defaults.items() for f in fields(config)}
+    segment, train = {}, {}
+    for item in filter(None, text.split(",")):
+        name, sep, value = item.partition("=")
+        if name not in types or not sep:
+            raise ValueError(f"unknown setting {item!r}; write field=value with one of: {', '.join(types)}")
+        kind = types[name]
+        if kind is bool:
+            typed = value.lower() in ("1", "true", "yes", "on")
+        elif kind is tuple:
+            typed = tuple(filter(None, value.split("+")))
+        else:
+            try:
+                typed = kind(value)
+            except ValueError:
+                raise ValueError(f"{name}: {value!r} is not a {kind.__name__}") from None
+        (train if name.startswith("train.") else segment)[name.removeprefix("train.")] = typed
+    return segment, train
+
+
+def fold_of(n_meshes: int, n_folds: int) -> np.ndarray:
+    """The fold of each of a split's training meshes: mesh i goes to fold i % n_folds."""
+    if not 2 <= n_folds <= n_meshes:
+        raise ValueError(f"folds must lie in 2..{n_meshes}, got {n_folds}")
+    return np.arange(n_meshes) % n_folds
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One training and scoring: an arm on one fold of one category, with one seed."""
+
+    arm: Arm
+    category: str
+    fold: int
+    seed: int
+    folds: int = 3
+    epochs: int | None = None
+    dataset: str = "psb"
+    split_index: int = 0
+    options: tuple = ()  # data set options (the synthetic generator's), as sorted (name, value) pairs
+
+    def configs(self) -> tuple[SegmentConfig, TrainConfig]:
+        segment, train = self.arm.configs(self.epochs)
+        return segment, replace(train, seed=self.seed)
+
+    def _experiment(self, segment: SegmentConfig) -> Experiment:
+        return Experiment(self.dataset, self.category, self.split_index, segment, self.configs()[1])
+
+    def _options(self) -> dict:
+        return {**dict(self.options), "validation": {"folds": self.folds, "fold": self.fold}}
+
+    def key(self) -> str:
+        return self._experiment(self.configs()[0]).key(self._options())
+
+    def training_key(self) -> str:
+        """The key of the trained model: the cell's key with the inference-only settings at their defaults."""
+        defaults = SegmentConfig()
+        segment = replace(self.configs()[0], **{name: getattr(defaults, name) for name in INFERENCE_ONLY})
+        return self._experiment(segment).key(self._options())
+
+    def describe(self) -> str:
+        return f"{self.arm.name} {self.category} fold {self.fold} seed {self.seed}"
+
+
+def load_training_meshes(cell: Cell, root=None) -> list:
+    """The training meshes of the cell's split, and only those: the test split is never read."""
+    from anseg import datasets
+
+    return datasets.load(cell.dataset, cell.category, split="train", split_index=cell.split_index, root=root,
+                         progress=False, **dict(cell.options))
+
+
+def run_cell(cell: Cell, out: str | Path = DEFAULT_OUT, root=None, progress: bool = False) -> dict:
+    """Train (or reuse the model of) one cell and score its held-out meshes; the result is stored under ``out/runs``."""
+    out = Path(out)
+    key = cell.key()
+    result_path = out / "runs" / f"{key}.json"
+    if result_path.is_file():
+        return json.loads(result_path.read_text())
+    meshes = load_training_meshes(cell, root)
+    fold = fold_of(len(meshes), cell.folds)
+    train_set = [m for m, f in zip(meshes, fold) if f != cell.fold]
+    held_out = [m for m, f in zip(meshes, fold) if f == cell.fold]
+    segment, train = cell.configs()
+    model_path = out / "models" / f"{cell.training_key()}.pt"
+    started = time.time()
+    if model_path.is_file():
+        model = Segmenter.load(model_path)
+        trained = False
+    else:
+        model = fit(train_set, meshes[0].label_names, segment, train, model_path.with_suffix(".ckpt"), progress)
+        model.save(model_path)
+        model_path.with_suffix(".ckpt").unlink(missing_ok=True)
+        trained = True
+    train_seconds = time.time() - started
+    scores = evaluate(model, held_out, segment, progress=progress)
+    result = {
+        "key": key, "training_key": cell.training_key(), "arm": cell.arm.name, "category": cell.category,
+        "fold": cell.fold, "folds": cell.folds, "seed": cell.seed, "dataset": cell.dataset,
+        "split_index": cell.split_index, "segment": asdict(segment), "train": asdict(train),
+        "train_meshes": [m.name for m in train_set], "held_out": [m.name for m in held_out],
+        "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
+        "trained": trained, "train_seconds": train_seconds, "environment": environment(),
+    }
+    text = json.dumps(result, indent=1)
+    atomic_write(result_path, lambda tmp: tmp.write_text(text))
+    return json.loads(text)
+
+
+def study_cells(arms, categories, folds: int, use_folds, seeds, epochs=None, dataset="psb", split_index=0, options=()) -> list[Cell]:
+    """Every cell of a study; cells that reuse another's model come after it, so it is trained once."""
+    cells = [Cell(arm, category, fold, seed, folds, epochs, dataset, split_index, tuple(sorted(dict(options).items())))
+             for seed in seeds for fold in use_folds for category in categories for arm in arms]
+    return sorted(cells, key=lambda c: any(c.arm.segment.get(n, getattr(SegmentConfig(), n)) != getattr(SegmentConfig(), n)
+                                           for n in INFERENCE_ONLY))
+
+
+def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, jobs: int = 1, progress: bool = True) -> list[dict]:
+    """Run (or read back) every cell, ``jobs`` at a time; each result is stored as it finishes."""
+    from anseg.parallel import run_parallel
+
+    out = Path(out)
+    calls = [(run_cell, (cell, str(out), root)) for cell in cells]
+    results = []
+    for index, outcome in run_parallel(calls, jobs, progress=progress, desc="validate"):
+        if isinstance(outcome, BaseException):
+            print(f"[anseg] FAILED {cells[index].describe()}: {outcome}", file=sys.stderr, flush=True)
+            continue
+        results.append(outcome)
+    return results
+
+
+def accuracy_table(results: list[dict]) -> dict[tuple[str, str, int, int], float]:
+    """(arm, category, fold, seed) -> held-out accuracy in % (Eq. 5, unit area, as the arm segments)."""
+    return {(r["arm"], r["category"], r["fold"], r["seed"]): 100 * r["accuracy"]["unit_area"] for r in results}
+
+
+def paired_difference(table: dict, arm: str, baseline: str, samples: int = BOOTSTRAP_SAMPLES, seed: int = 0) -> dict:
+    """Arm minus baseline over the (category, fold) cells both have, seeds averaged inside a cell.
+
+    Returns the mean difference, its 95 % two-stage bootstrap interval
+    (categories, then folds inside each category, resampled with
+    replacement) and the number of categories and paired cells.
+    """
+    pairs: dict[str, dict[int, list[float]]] = {}
+    for (name, category, fold, seed_), value in table.items():
+        other = table.get((baseline, category, fold, seed_))
+        if name == arm and other is not None:
+            pairs.setdefault(category, {}).setdefault(fold, []).append(value - other)
+    if not pairs:
+        return {"arm": arm, "baseline": baseline, "mean": float("nan"), "low": float("nan"), "high": float("nan"),
+                "categories": 0, "cells": 0}
+    per_category = [np.array([np.mean(v) for v in folds.values()]) for folds in pairs.values()]
+    mean = float(np.mean([d.mean() for d in per_category]))
+    rng = np.random.default_rng(seed)
+    draws = np.empty(samples)
+    for b in range(samples):
+        chosen = rng.integers(0, len(per_category), len(per_category))
+        draws[b] = np.mean([rng.choice(per_category[c], len(per_category[c])).mean() for c in chosen])
+    low, high = np.percentile(draws, [2.5, 97.5])
+    return {"arm": arm, "baseline": baseline, "mean": mean, "low": float(low), "high": float(high),
+            "categories": len(per_category), "cells": int(sum(len(d) for d in per_category))}
+
+
+def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict]]:
+    """Per arm and category (and the suite mean) rows, and each arm's paired comparison with the baseline."""
+    table = accuracy_table(results)
+    arms = sorted({k[0] for k in table}, key=lambda a: (a != baseline, a))
+    categories = sorted({k[1] for k in table})
+    rows = []
+    for arm in arms:
+        cells = {k: v for k, v in table.items() if k[0] == arm}
+        for category in categories:
+            values = [v for k, v in cells.items() if k[1] == category]
+            if values:
+                rows.append({"arm": arm, "category": category, "mean": float(np.mean(values)),
+                             "std": float(np.std(values, ddof=1)) if len(values) > 1 else float("nan"), "runs": len(values)})
+        replicates = {}
+        for (_, category, fold, seed), value in cells.items():
+            replicates.setdefault((fold, seed), {})[category] = value
+        complete = [np.mean(list(r.values())) for r in replicates.values() if len(r) == len(categories)]
+        means = [row["mean"] for row in rows if row["arm"] == arm]
+        rows.append({"arm": arm, "category": "suite mean", "mean": float(np.mean(means)),
+                     "std": float(np.std(complete, ddof=1)) if len(complete) > 1 else float("nan"), "runs": len(cells)})
+    comparisons = [paired_difference(table, arm, baseline) for arm in arms if arm != baseline]
+    return rows, comparisons
+
+
+def write_report(results: list[dict], baseline: str, out: str | Path, study: str) -> str:
+    """Write ``<out>/<study>_accuracy.csv`` and ``<out>/<study>_paired.csv``; return the report as text."""
+    rows, comparisons = summarize(results, baseline)
+    out = Path(out)
+    for name, table in (("accuracy", rows), ("paired", comparisons)):
+        if table:
+            text = _csv_text(table)
+            atomic_write(out / f"{study}_{name}.csv", lambda tmp, text=text: tmp.write_text(text))
+    lines = [f"{'arm':<24} {'category':<12} {'mean':>7} {'std':>6} {'runs':>4}"]
+    lines += [f"{r['arm']:<24} {r['category']:<12} {r['mean']:7.2f} {r['std']:6.2f} {r['runs']:4d}" for r in rows]
+    if comparisons:
+        lines.append(f"\npaired difference against {baseline!r} (95 % bootstrap over categories, then folds):")
+        for c in comparisons:
+            verdict = "adopt" if c["low"] > 0 else ("worse" if c["high"] < 0 else "no evidence")
+            lines.append(f"  {c['arm']:<24} {c['mean']:+6.2f} [{c['low']:+6.2f}, {c['high']:+6.2f}] "
+                         f"({c['categories']} categories, {c['cells']} cells): {verdict}")
+    return "\n".join(lines)
+
+
+def _csv_text(rows: list[dict]) -> str:
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows([{k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in row.items()} for row in rows])
+    return buffer.getvalue()
+
+
+def read_results(out: str | Path, cells: list[Cell]) -> list[dict]:
+    """The stored results of those cells that have one."""
+    paths = [Path(out, "runs", f"{cell.key()}.json") for cell in cells]
+    return [json.loads(p.read_text()) for p in paths if p.is_file()]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="anseg validate", description=__doc__.splitlines()[0])
+    parser.add_argument("--study", required=True, help="name of the study: the report goes to OUT/STUDY_*.csv")
+    parser.add_argument("--arm", action="append", required=True,
+                        help="NAME[:field=value,train.field=value,...]; repeat for each arm (the first is the baseline "
+                             "unless --baseline says otherwise)")
+    parser.add_argument("--baseline", help="the arm the others are compared with (default: the first --arm)")
+    parser.add_argument("--categories", nargs="+", default=list(DEV_SUITE), help="default: the development suite")
+    parser.add_argument("--folds", type=int, default=3, help="folds of the split's training meshes (default: 3)")
+    parser.add_argument("--use-folds", type=int, nargs="+", help="which folds to run (default: all)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--epochs", type=int, help="training epochs (default: TrainConfig's)")
+    parser.add_argument("--split", type=int, default=0, help="the fixed PSB split whose TRAINING meshes are used (default: 0)")
+    parser.add_argument("--dataset", default="psb")
+    parser.add_argument("--jobs", type=int, default=1, help="cells trained side by side, one thread each (default: 1)")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"result store and report folder (default: {DEFAULT_OUT})")
+    parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
+    parser.add_argument("--report-only", action="store_true", help="write the report from the stored cells, train nothing")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    try:
+        arms = [Arm.parse(text) for text in args.arm]
+        for arm in arms:
+            arm.configs(args.epochs)  # a bad value fails here, before any training
+        if len({a.name for a in arms}) != len(arms):
+            raise ValueError("arm names must differ")
+        baseline = args.baseline or arms[0].name
+        if baseline not in {a.name for a in arms}:
+            raise ValueError(f"baseline {baseline!r} is not among the arms")
+        if args.jobs < 1:
+            raise ValueError("--jobs must be at least 1")
+        use_folds = args.use_folds if args.use_folds is not None else list(range(args.folds))
+        if any(not 0 <= f < args.folds for f in use_folds):
+            raise ValueError(f"--use-folds must lie in 0..{args.folds - 1}")
+        fold_of(12 if args.dataset == "psb" else args.folds, args.folds)
+    except ValueError as exc:
+        parser.error(str(exc))
+    cells = study_cells(arms, args.categories, args.folds, use_folds, args.seeds, args.epochs, args.dataset, args.split)
+    if args.report_only:
+        results = read_results(args.out, cells)
+    else:
+        results = run_study(cells, args.out, args.data, args.jobs, progress=not args.quiet)
+    if not results:
+        print("no results stored for this study yet", file=sys.stderr)
+        return 1
+    print(write_report(results, baseline, args.out, args.study))
+    return 0 if len(results) == len(cells) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

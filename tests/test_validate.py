@@ -1,0 +1,129 @@
+"""Validation: folds of training meshes only, keyed and resumable cells, the paired comparison."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from anseg import validate
+from anseg.train import Experiment
+from anseg.validate import Arm, Cell, fold_of, paired_difference, parse_overrides
+
+SMALL = {"cycles": 2, "clusters": 4}
+SYNTHETIC = dict(dataset="synthetic", options=(("n_shapes", 8),))
+
+
+def test_overrides_are_typed_like_the_defaults():
+    segment, train = parse_overrides("once_per_pass=true,ratio=0.4,groups=edge+sdf,train.width=128")
+    assert segment == {"once_per_pass": True, "ratio": 0.4, "groups": ("edge", "sdf")}
+    assert train == {"width": 128}
+    with pytest.raises(ValueError, match="unknown setting"):
+        parse_overrides("no_such_field=1")
+    with pytest.raises(ValueError, match="not a int"):
+        parse_overrides("train.width=wide")
+    assert Arm.parse("default") == Arm("default")
+
+
+def test_folds_partition_the_training_meshes():
+    fold = fold_of(12, 3)
+    assert np.bincount(fold).tolist() == [4, 4, 4]
+    with pytest.raises(ValueError):
+        fold_of(12, 1)
+
+
+def test_keys_separate_cells_and_inference_settings_share_a_model():
+    base = Cell(Arm("default"), "Human", fold=0, seed=0)
+    assert base.key() != Cell(Arm("default"), "Human", fold=1, seed=0).key()
+    assert base.key() != Cell(Arm("default"), "Human", fold=0, seed=1).key()
+    segment, train = base.configs()
+    assert base.key() != Experiment("psb", "Human", 0, segment, train).key()  # never a table experiment's key
+    cut = Cell(Arm("cut", {"smooth_weight": 3.0}), "Human", fold=0, seed=0)
+    assert cut.key() != base.key() and cut.training_key() == base.training_key()
+    wide = Cell(Arm("wide", train={"width": 128}), "Human", fold=0, seed=0)
+    assert wide.training_key() != base.training_key()
+
+
+def test_paired_difference_and_its_interval():
+    table = {}
+    for c, category in enumerate(["A", "B", "C"]):
+        for fold in range(3):
+            for seed in range(2):
+                table[("base", category, fold, seed)] = 80.0 + c
+                table[("plus", category, fold, seed)] = 82.0 + c
+                table[("mixed", category, fold, seed)] = 80.0 + c + (1.0 if fold == 0 else -0.5)
+    plus = paired_difference(table, "plus", "base", samples=500)
+    assert plus["mean"] == pytest.approx(2.0) and plus["low"] == pytest.approx(2.0) and plus["high"] == pytest.approx(2.0)
+    assert plus["categories"] == 3 and plus["cells"] == 9
+    mixed = paired_difference(table, "mixed", "base", samples=2000)
+    assert mixed["mean"] == pytest.approx(0.0)
+    assert mixed["low"] < 0 < mixed["high"]
+    assert np.isnan(paired_difference(table, "absent", "base")["mean"])
+
+
+def test_report_names_the_verdict(tmp_path):
+    results = [{"arm": arm, "category": cat, "fold": f, "seed": 0, "accuracy": {"unit_area": (70 + bonus + f) / 100}}
+               for arm, bonus in (("default", 0), ("better", 3)) for cat in ("A", "B") for f in range(3)]
+    text = validate.write_report(results, "default", tmp_path, "demo")
+    assert "better" in text and "adopt" in text
+    rows = (tmp_path / "demo_accuracy.csv").read_text().splitlines()
+    assert rows[0] == "arm,category,mean,std,runs"
+    assert "default,suite mean,71.0000,1.0000,6" in rows  # folds score 70, 71, 72: mean 71, spread 1
+    assert (tmp_path / "demo_paired.csv").is_file()
+
+
+@pytest.mark.slow
+def test_a_study_stores_its_cells_and_resumes_without_training(tmp_path, monkeypatch):
+    torch.set_num_threads(1)
+    arms = [Arm("default", SMALL), Arm("no-cut", {**SMALL, "smooth_weight": 0.0})]
+    cells = validate.study_cells(arms, ["figure"], folds=2, use_folds=[0], seeds=[0], epochs=2, **SYNTHETIC)
+    assert [c.arm.name for c in cells] == ["default", "no-cut"]  # the model is trained before it is reused
+    fits = []
+    real_fit = validate.fit
+    monkeypatch.setattr(validate, "fit", lambda *a, **k: fits.append(1) or real_fit(*a, **k))
+    results = validate.run_study(cells, tmp_path, progress=False)
+    assert len(results) == 2 and len(fits) == 1  # the inference-only arm reused the trained model
+    assert [r["trained"] for r in results] == [True, False]
+    assert not set(results[0]["held_out"]) & set(results[0]["train_meshes"])
+    assert len(list((tmp_path / "runs").glob("*.json"))) == 2
+    again = validate.run_study(cells, tmp_path, progress=False)
+    assert len(fits) == 1 and [r["key"] for r in again] == [r["key"] for r in results]
+
+
+def test_cli_refuses_bad_arms_in_one_line(capsys):
+    with pytest.raises(SystemExit) as stop:
+        validate.main(["--study", "x", "--arm", "a:train.width=wide"])
+    assert stop.value.code == 2
+    assert "train.width" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        validate.main(["--study", "x", "--arm", "a", "--arm", "a"])
+
+
+@pytest.mark.realdata
+def test_validation_never_reads_a_test_mesh(data_root, tmp_path, monkeypatch):
+    from anseg.datasets import psb
+
+    read = []
+    real_read = psb.read_mesh
+    monkeypatch.setattr(psb, "read_mesh", lambda path: read.append(path) or real_read(path))
+    monkeypatch.setattr(validate, "fit", lambda *args, **kwargs: _Stub())
+    monkeypatch.setattr(validate, "evaluate", lambda model, meshes, config, progress: _scores(meshes))
+    cell = Cell(Arm("default"), "Vase", fold=1, seed=0)
+    result = validate.run_cell(cell, tmp_path, root=data_root)
+    split = psb.psb_split("Vase", 0)
+    ids = {int(p.stem) for p in read}
+    assert ids == set(split["train"]) and not ids & set(split["test"])
+    assert len(result["held_out"]) == 4 and len(result["train_meshes"]) == 8
+    assert json.loads((tmp_path / "runs" / f"{cell.key()}.json").read_text())["held_out"] == result["held_out"]
+
+
+class _Stub:
+    def save(self, path):
+        pass
+
+
+def _scores(meshes):
+    score = {"unit_area": 0.5, "raw_area": 0.5, "faces": 0.5}
+    return {"smoothed": score, "unsmoothed": score, "per_mesh": [{"name": m.name} for m in meshes]}
