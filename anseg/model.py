@@ -73,6 +73,7 @@ class ModelConfig:
     dropout: float = 0.0
     init_std: float = math.sqrt(0.001)  # the paper's N(0, 0.001), read as variance
     position_frequencies: int = 0  # 0: no positional signal (see module docstring)
+    embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
 
     def __post_init__(self) -> None:
         for name in ("in_features", "n_classes", "width", "depth", "heads", "patch_size"):
@@ -241,7 +242,8 @@ class AttentionSegmenter(nn.Module):
         super().__init__()
         self.config = config
         width = config.width
-        self.embed = nn.Sequential(nn.Linear(config.in_features, width), nn.GELU(), nn.Linear(width, width))
+        layers = [nn.Linear(config.in_features, width), nn.GELU(), nn.Linear(width, width)]
+        self.embed = nn.Sequential(*layers, *([nn.LayerNorm(width)] if config.embed_norm else []))
         self.share_score = nn.Linear(width, 1)
         self.position = nn.Linear(2 * config.position_frequencies, width) if config.position_frequencies else None
         self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))

@@ -26,7 +26,17 @@ Choices this module makes (see DESIGN.md):
   (100 epochs) that gave 73.9 % for nonuniform against 85.4 % averaged,
   because a heavily collapsed coarse face mislabels every input face it
   stands for, while averaging keeps the coarse levels' context and the fine
-  level's detail.
+  level's detail. ``combine="decay"`` weighs level i by 2^-i (each level has
+  about half the faces of the one before), so that the input level keeps
+  half the vote instead of a fifth.
+* ``local_scale``: the ``edge`` group's values are lengths on the unit-area
+  mesh, so they grow as a level gets coarser (the product of three lengths
+  by 8x per halving) and sit far outside the level-0 statistics that
+  standardise them. ``"relative"`` reads them against the level's own
+  median edge length instead (logged, per length: log(e_k / l^k) / k), so
+  that every level is on the level-0 scale and a giant face shows as a few
+  units, not thousands; ``"unit_area"`` keeps the values as the cache holds
+  them.
 """
 
 from __future__ import annotations
@@ -46,6 +56,8 @@ from anseg.model import AttentionSegmenter, ModelConfig
 from anseg.smooth import smooth as graph_cut
 
 MODES = ("nonuniform", "uniform", "none")
+COMBINE = ("coarsest", "all", "decay")
+LOCAL_SCALES = ("unit_area", "relative")
 
 
 @dataclass
@@ -53,7 +65,8 @@ class SegmentConfig:
     """The switches of Algorithm 1 (the paper's defaults: 4 cycles at ratio 0.5).
 
     ``once_per_pass`` is passed to :func:`anseg.collapse.downsample` (off by
-    default, as in the committed results).
+    default, as in the committed results); ``combine`` and ``local_scale``
+    are read in the module docstring.
     """
 
     cycles: int = 4
@@ -65,13 +78,16 @@ class SegmentConfig:
     smooth_weight: float = 1.0
     combine: str = "all"
     once_per_pass: bool = False
+    local_scale: str = "unit_area"
     seed: int = 0
 
     def __post_init__(self):
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
-        if self.combine not in ("coarsest", "all"):
-            raise ValueError(f"combine must be 'coarsest' or 'all', got {self.combine!r}")
+        if self.combine not in COMBINE:
+            raise ValueError(f"combine must be one of {COMBINE}, got {self.combine!r}")
+        if self.local_scale not in LOCAL_SCALES:
+            raise ValueError(f"local_scale must be one of {LOCAL_SCALES}, got {self.local_scale!r}")
         if not 0.0 < self.ratio < 1.0:
             raise ValueError(f"ratio must lie in (0, 1), got {self.ratio}")
         if self.cycles < 0:
@@ -146,10 +162,21 @@ class Level:
     attention: np.ndarray | None = None
     record: collapse.CollapseRecord | None = None
 
-    def feature_matrix(self, level: int, n_levels: int) -> np.ndarray:
-        """The model's raw input: the feature groups side by side, then the level column."""
+    def feature_matrix(self, level: int, n_levels: int, local_scale: str = "unit_area") -> np.ndarray:
+        """The model's raw input: the feature groups side by side (as :func:`input_groups` reads them), then the level column."""
         column = np.full((self.mesh.n_faces, 1), level / max(1, n_levels - 1))
-        return np.concatenate([*self.groups.values(), column], axis=1).astype(np.float32)
+        return np.concatenate([*input_groups(self.groups, local_scale).values(), column], axis=1).astype(np.float32)
+
+
+def input_groups(groups: dict[str, np.ndarray], local_scale: str) -> dict[str, np.ndarray]:
+    """The feature groups as the network reads them (``local_scale``: see the module docstring)."""
+    if local_scale == "unit_area" or "edge" not in groups:
+        return groups
+    edge = groups["edge"]
+    power = np.arange(1, edge.shape[1] + 1)
+    typical = max(float(np.median(edge[:, 0])) / 3, 1e-12)  # median edge length of the level
+    relative = np.log(np.maximum(edge, 1e-30) / typical ** power) / power
+    return {**groups, "edge": relative}
 
 
 @dataclass
@@ -174,7 +201,7 @@ def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, n
 
 def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, device) -> dict[str, torch.Tensor]:
     """Standardised features and the patch layout of one level, as tensors for the model."""
-    x = model.standardize(level.feature_matrix(index, n_levels))
+    x = model.standardize(level.feature_matrix(index, n_levels, model.config.local_scale))
     return {
         "x": torch.as_tensor(x, device=device),
         "patch_of_face": torch.as_tensor(level.layout.patch_of_face, device=device),
@@ -193,7 +220,7 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
     levels = []
     current, current_groups = mesh, groups
     for index in range(config.n_levels):
-        x = np.concatenate(list(current_groups.values()), axis=1)
+        x = np.concatenate(list(input_groups(current_groups, config.local_scale).values()), axis=1)
         level = Level(current, current_groups, layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed))
         levels.append(level)
         if index == config.n_levels - 1:
@@ -214,7 +241,7 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
 def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentConfig, device="cpu") -> np.ndarray:
     """Class probabilities on the original faces, carried up from the coarsest level (or all levels)."""
     model.network.eval()
-    per_level = []
+    per_level, weights = [], []
     with torch.no_grad():
         for index, level in enumerate(levels):
             if config.combine == "coarsest" and index < len(levels) - 1:
@@ -225,7 +252,8 @@ def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentCo
             probs = torch.softmax(out.logits, dim=1).cpu().numpy().astype(np.float64)
             records = [lv.record for lv in levels[:index]]
             per_level.append(collapse.upsample_through(records, probs) if records else probs)
-    return np.mean(per_level, axis=0)
+            weights.append(0.5 ** index if config.combine == "decay" else 1.0)
+    return np.average(per_level, axis=0, weights=weights)
 
 
 def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, groups=None, device="cpu") -> Segmentation:

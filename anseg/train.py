@@ -49,7 +49,7 @@ from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.metrics import pooled_accuracy
 from anseg.model import AttentionSegmenter, ModelConfig
-from anseg.pipeline import SegmentConfig, Segmenter, build_levels, model_inputs, segment
+from anseg.pipeline import SegmentConfig, Segmenter, build_levels, input_groups, model_inputs, segment
 
 
 @dataclass
@@ -62,6 +62,7 @@ class TrainConfig:
     depth: int = 2
     heads: int = 4
     dropout: float = 0.0
+    embed_norm: bool = False
     recollapse_every: int = 5
     attention_weight: float = 1.0
     boundary_rings: int = 2
@@ -178,11 +179,11 @@ def fit(
     device = resolve_device(train.device)
     seed_everything(train.seed)
     groups = level_zero_features(train_set, config, progress=progress)
-    mean, std = feature_statistics(groups)
+    mean, std = feature_statistics([input_groups(g, config.local_scale) for g in groups])
     network = AttentionSegmenter(
         ModelConfig(
             in_features=len(mean), n_classes=len(label_names), width=train.width, depth=train.depth,
-            heads=train.heads, patch_size=config.patch_size, dropout=train.dropout,
+            heads=train.heads, patch_size=config.patch_size, dropout=train.dropout, embed_norm=train.embed_norm,
         )
     ).to(device)
     model = Segmenter(network, config, mean, std, list(label_names))
@@ -257,8 +258,12 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
     }
 
 
-# SegmentConfig fields introduced after stored results, with the default the older results ran with.
-SETTINGS_ADDED_LATER = {"once_per_pass": False}
+# Fields of SegmentConfig ("segment") and TrainConfig ("train") introduced after results were stored, with
+# the value the older results ran with: at that value a field stays out of the key.
+SETTINGS_ADDED_LATER = {
+    "segment": {"once_per_pass": False, "local_scale": "unit_area"},
+    "train": {"embed_norm": False},
+}
 
 
 @dataclass
@@ -277,9 +282,9 @@ class Experiment:
         Settings added after results were stored leave the key alone at their
         default (:data:`SETTINGS_ADDED_LATER`), so those results keep their keys.
         """
-        segment = {k: v for k, v in asdict(self.segment).items() if SETTINGS_ADDED_LATER.get(k, object()) != v}
-        text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index,
-                           "segment": segment, "train": asdict(self.train),
+        keyed = {part: {k: v for k, v in asdict(config).items() if SETTINGS_ADDED_LATER[part].get(k, object()) != v}
+                 for part, config in (("segment", self.segment), ("train", self.train))}
+        text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
                            **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 

@@ -11,6 +11,7 @@ import torch
 from anseg import datasets
 from anseg.pipeline import SegmentConfig, Segmenter, build_levels, segment
 from anseg.train import Experiment, TrainConfig, evaluate, fit, run_experiment
+from conftest import grid_mesh
 
 FAST = SegmentConfig(cycles=2, clusters=4, patch_size=16)
 
@@ -84,3 +85,15 @@ def test_experiment_result_is_stored_and_reused(tmp_path, monkeypatch):
     assert experiment.key({"n_shapes": 4}) != experiment.key()
     monkeypatch.setattr("anseg.train.fit", lambda *a, **k: pytest.fail("a stored result must not be retrained"))
     assert run_experiment(experiment, out_dir=tmp_path, progress=False, n_shapes=4) == first
+
+
+def test_relative_local_scale_puts_a_coarse_level_on_the_fine_scale():
+    from anseg import features
+    from anseg.pipeline import input_groups
+
+    coarse, fine = (features.compute_groups(grid_mesh(n), ["edge", "angles"]) for n in (4, 8))
+    assert not np.allclose(coarse["edge"], fine["edge"][: len(coarse["edge"])])  # unit-area lengths halve
+    relative = [input_groups(g, "relative") for g in (coarse, fine)]
+    np.testing.assert_allclose(relative[0]["edge"][0], relative[1]["edge"][0], atol=1e-9)
+    np.testing.assert_array_equal(relative[0]["angles"], coarse["angles"])  # dimensionless groups stay
+    assert input_groups(coarse, "unit_area") is coarse

@@ -92,3 +92,11 @@ def test_trained_on_names_the_gpu_or_the_cpu_count():
 
     assert trained_on({"environment": {"cuda": "NVIDIA H100 80GB HBM3", "cpus": 16}}) == "NVIDIA H100 80GB HBM3"
     assert trained_on({"environment": {"cuda": None, "cpus": 2}}) == "CPU, 2 cores"
+
+
+
+def test_settings_added_later_change_the_key_only_away_from_their_old_value():
+    # at the old value they stay out of the key (the pinned key above); any other value is a new experiment
+    base = Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig())
+    assert Experiment("psb", "Human", 0, SegmentConfig(local_scale="relative"), TrainConfig()).key() != base.key()
+    assert Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(embed_norm=True)).key() != base.key()
