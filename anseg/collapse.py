@@ -37,6 +37,15 @@ Rules this module fixes where the paper is silent:
   evens out edge lengths, so the mesh thins out roughly uniformly over the
   surface, the classic attention-free baseline (libigl's ``decimate`` uses
   the same cost and placement).
+* ``weighted`` (``priority="weighted"`` of ``nonuniform``) reads the
+  collapse as importance-weighted decimation: the same heap as ``uniform``,
+  keyed by an edge's squared length times the score of the face it belongs
+  to (each edge is queued once from each of its two faces, so its smaller
+  score counts first). Edges in low-score regions go first, but as they
+  grow their keys grow too, so a region thins out to edge lengths of about
+  1/sqrt(score) instead of being merged again and again into a few giant
+  faces; a flat score gives back the uniform collapse exactly. The
+  paper's walk in score order (``priority="score"``) is the default.
 * ``random`` uses static random scores drawn from ``seed``: a control.
 
 The :class:`CollapseRecord` stores every collapse: the kept and removed
@@ -70,6 +79,7 @@ from numba import njit
 from anseg.mesh import Mesh, MeshError
 
 MODES = ("nonuniform", "uniform", "random")
+PRIORITIES = ("score", "weighted")
 MIN_FACE_QUALITY = 1e-3
 _NO_BOUNDARY_RINGS = 1e6  # rings assigned when a mesh has a single label
 """A collapse may not push a face's ``2 * area / longest_edge**2`` below this
@@ -394,6 +404,9 @@ def _corner_edge_length2(vertices, faces, corner):
 def _downsample_core(vertices, faces, scores, shortest_edge_first, target, cos_max, min_quality, once_per_pass=False):
     """Collapse until ``target`` faces (or one above) are alive or no valid collapse is left.
 
+    ``shortest_edge_first``: edges by squared length times their face's
+    score (all ones: plain shortest edge first); otherwise faces in score order.
+
     ``once_per_pass`` (score order only): a face changed by a collapse (one
     around the kept vertex) takes part in no other collapse of the same pass.
 
@@ -482,7 +495,7 @@ def _downsample_core(vertices, faces, scores, shortest_edge_first, target, cos_m
                 for corner in range(3 * n_faces):
                     if alive[corner // 3]:
                         size = _heap_push(keys, items, times, size,
-                                          _corner_edge_length2(vertices, faces, corner), corner, t - 1)
+                                          scores[corner // 3] * _corner_edge_length2(vertices, faces, corner), corner, t - 1)
             corner, time, size = _heap_pop(keys, items, times, size)
             f = corner // 3
             if not alive[f]:
@@ -523,8 +536,8 @@ def _downsample_core(vertices, faces, scores, shortest_edge_first, target, cos_m
             while corner != -1:
                 h = corner // 3
                 before = 3 * h + (corner % 3 + 2) % 3  # the face's edge that ends at a
-                size = _heap_push(keys, items, times, size, _corner_edge_length2(vertices, faces, corner), corner, t)
-                size = _heap_push(keys, items, times, size, _corner_edge_length2(vertices, faces, before), before, t)
+                size = _heap_push(keys, items, times, size, scores[h] * _corner_edge_length2(vertices, faces, corner), corner, t)
+                size = _heap_push(keys, items, times, size, scores[h] * _corner_edge_length2(vertices, faces, before), before, t)
                 corner = nxt[corner]
             t += 1
 
@@ -672,7 +685,8 @@ class CollapseRecord:
 
 # --------------------------------------------------------------------------- downsampling
 def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonuniform", seed: int = 0,
-               max_normal_flip_deg: float = 60.0, once_per_pass: bool = False) -> tuple[Mesh, CollapseRecord]:
+               max_normal_flip_deg: float = 60.0, once_per_pass: bool = False,
+               priority: str = "score") -> tuple[Mesh, CollapseRecord]:
     """Collapse edges until ``round(ratio * mesh.n_faces)`` faces are left (or one more).
 
     ``mode``: ``"nonuniform"`` (least ``scores`` first, the paper's attentive
@@ -684,13 +698,17 @@ def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonunif
     modes): a face that a collapse changed (one around the kept vertex) takes
     part in no further collapse of the same pass, so a region of low scores
     thins out over several passes instead of being merged into a few large
-    faces in one. The input mesh must be edge-manifold
+    faces in one. ``priority`` (nonuniform): ``"score"``, faces in order of
+    rising score (the paper), or ``"weighted"``, edges by squared length
+    times score (scores must then be positive; module docstring). The input mesh must be edge-manifold
     (boundaries and several components are fine); it is not modified.
     Returns the coarse mesh (alive faces in fine-index order, used vertices
     compacted) and the :class:`CollapseRecord`.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if priority not in PRIORITIES:
+        raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
     if not 0.0 < ratio <= 1.0:
         raise ValueError(f"ratio must lie in (0, 1], got {ratio}")
     if not 0.0 < max_normal_flip_deg <= 180.0:
@@ -704,19 +722,21 @@ def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonunif
             raise ValueError(f"scores must have shape ({n_faces},), one per face, got {scores.shape}")
         if not np.isfinite(scores).all():
             raise ValueError(f"scores must be finite; {int((~np.isfinite(scores)).sum())} are NaN or infinite")
+        if priority == "weighted" and (scores <= 0).any():
+            raise ValueError(f"weighted priority needs positive scores; {int((scores <= 0).sum())} are not")
     elif scores is not None:
         raise ValueError(f"scores are only used in nonuniform mode, not {mode!r}")
     elif mode == "random":
         scores = np.random.default_rng(seed).random(n_faces)
     else:
-        scores = np.zeros(n_faces)  # the shortest-edge path ignores it; the compiled core takes an array
+        scores = np.ones(n_faces)  # every edge weighs its plain length
     _check_input(mesh)
 
     vertices = mesh.vertices.copy()
     faces = mesh.faces.copy()
     target = int(round(ratio * n_faces))
     (alive, kept, removed, removed_faces, removed_face_vertices, old_positions, neighbors, ptr, corners,
-     refused) = _downsample_core(vertices, faces, scores, mode == "uniform", target,
+     refused) = _downsample_core(vertices, faces, scores, mode == "uniform" or priority == "weighted", target,
                                  float(np.cos(np.radians(max_normal_flip_deg))), MIN_FACE_QUALITY, once_per_pass)
 
     coarse_face_ids = np.flatnonzero(alive)

@@ -65,8 +65,9 @@ class SegmentConfig:
     """The switches of Algorithm 1 (the paper's defaults: 4 cycles at ratio 0.5).
 
     ``once_per_pass`` is passed to :func:`anseg.collapse.downsample` (off by
-    default, as in the committed results); ``combine`` and ``local_scale``
-    are read in the module docstring.
+    default, as in the committed results), and so is ``priority`` (the
+    paper's ``"score"`` order, or ``"weighted"`` decimation); ``combine`` and
+    ``local_scale`` are read in the module docstring.
     """
 
     cycles: int = 4
@@ -79,6 +80,7 @@ class SegmentConfig:
     combine: str = "all"
     once_per_pass: bool = False
     local_scale: str = "unit_area"
+    priority: str = "score"
     seed: int = 0
 
     def __post_init__(self):
@@ -86,6 +88,8 @@ class SegmentConfig:
             raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
         if self.combine not in COMBINE:
             raise ValueError(f"combine must be one of {COMBINE}, got {self.combine!r}")
+        if self.priority not in collapse.PRIORITIES:
+            raise ValueError(f"priority must be one of {collapse.PRIORITIES}, got {self.priority!r}")
         if self.local_scale not in LOCAL_SCALES:
             raise ValueError(f"local_scale must be one of {LOCAL_SCALES}, got {self.local_scale!r}")
         if not 0.0 < self.ratio < 1.0:
@@ -229,11 +233,13 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
             model.network.eval()
             with torch.no_grad():
                 level.attention = model(**model_inputs(model, level, index, config.n_levels, device)).attention.cpu().numpy()
-            scores = level.attention
+            # the weighted key multiplies by the score, so it must stay positive
+            scores = np.maximum(level.attention, 1e-6) if config.priority == "weighted" else level.attention
         else:
             scores = None
         current, level.record = collapse.downsample(current, scores, ratio=config.ratio, mode=config.mode,
-                                                    seed=config.seed + index, once_per_pass=config.once_per_pass)
+                                                    seed=config.seed + index, once_per_pass=config.once_per_pass,
+                                                    priority=config.priority)
         current_groups = coarse_groups(level, current, level.record, config.groups)
     return levels
 

@@ -14,6 +14,7 @@ from scipy.sparse.csgraph import connected_components
 
 from anseg.collapse import (
     MODES,
+    PRIORITIES,
     CollapseWarning,
     compose,
     downsample,
@@ -124,7 +125,7 @@ def check_cycle(fine, coarse, record, warned):
 
 
 def run_cycle(mesh, mode, ratio, rng, **options):
-    scores = rng.normal(size=mesh.n_faces) if mode == "nonuniform" else None
+    scores = np.exp(rng.normal(size=mesh.n_faces)) if mode == "nonuniform" else None  # positive, for either priority
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         coarse, record = downsample(mesh, scores, ratio=ratio, mode=mode, seed=int(rng.integers(100)), **options)
@@ -134,12 +135,12 @@ def run_cycle(mesh, mode, ratio, rng, **options):
 # ----------------------------------------------------------------------------- properties
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(mesh=meshes(), mode=st.sampled_from(MODES), ratio=st.floats(0.3, 0.9), seed=st.integers(0, 1000),
-       once_per_pass=st.booleans())
-def test_cycles_keep_topology_and_undo_exactly(mesh, mode, ratio, seed, once_per_pass):
+       once_per_pass=st.booleans(), priority=st.sampled_from(PRIORITIES))
+def test_cycles_keep_topology_and_undo_exactly(mesh, mode, ratio, seed, once_per_pass, priority):
     rng = np.random.default_rng(seed)
     records, current = [], mesh
     for _ in range(2):
-        coarse, record, warned = run_cycle(current, mode, ratio, rng, once_per_pass=once_per_pass)
+        coarse, record, warned = run_cycle(current, mode, ratio, rng, once_per_pass=once_per_pass, priority=priority)
         check_cycle(current, coarse, record, warned)
         records.append(record)
         current = coarse
@@ -230,6 +231,30 @@ def test_once_per_pass_spreads_the_collapses_of_a_low_score_region():
         assert record.reached_target
         largest[once] = np.bincount(record.fine_to_coarse).max()  # input faces behind the largest coarse face
     assert largest[True] < largest[False]
+
+
+def test_weighted_priority_with_a_flat_score_is_the_uniform_collapse():
+    mesh = bumpy_sphere(3, np.random.default_rng(5))
+    uniform, _ = downsample(mesh, mode="uniform", ratio=0.5)
+    flat, _ = downsample(mesh, np.full(mesh.n_faces, 0.7), ratio=0.5, priority="weighted")
+    np.testing.assert_array_equal(flat.faces, uniform.faces)
+    np.testing.assert_array_equal(flat.vertices, uniform.vertices)
+
+
+def test_weighted_priority_thins_a_low_score_region_without_giant_faces():
+    mesh = bumpy_sphere(3, np.random.default_rng(4))
+    x = mesh.face_centroids[:, 0]
+    scores = np.where(x < 0, 0.25, 1.0)
+    largest, removed = {}, {}
+    for priority in PRIORITIES:
+        _, record = downsample(mesh, scores, ratio=0.6, priority=priority)
+        largest[priority] = np.bincount(record.fine_to_coarse).max()
+        gone = np.zeros(mesh.n_faces, bool)
+        gone[record.removed_faces.ravel()] = True
+        removed[priority] = (gone[x < -0.3].mean(), gone[x > 0.3].mean())
+    low, high = removed["weighted"]
+    assert low > 2 * high  # density still follows the score...
+    assert largest["weighted"] < largest["score"] / 2  # ...but no region is merged into a few faces
 
 
 def test_uniform_collapses_short_edges_first():
@@ -338,6 +363,10 @@ def test_bad_scores_and_modes_raise(scores, mode, message):
     mesh = bumpy_sphere(1, np.random.default_rng(11))  # 80 faces
     with pytest.raises(ValueError, match=message):
         downsample(mesh, scores, mode=mode)
+    with pytest.raises(ValueError, match="positive scores"):
+        downsample(mesh, np.r_[0.0, np.ones(79)], priority="weighted")
+    with pytest.raises(ValueError, match="priority must be"):
+        downsample(mesh, np.ones(80), priority="fastest")
 
 
 def test_bad_ratio_and_meshes_raise():

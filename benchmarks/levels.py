@@ -1,0 +1,113 @@
+"""Per-level health of a trained model's hierarchy: input scale, giant faces, attention at boundaries.
+
+    python benchmarks/levels.py results/validation/runs/<key>.json [...] [--with priority=weighted] [--out levels.csv]
+
+Each argument is a stored validation cell (:mod:`anseg.validate`): its model
+(``results/validation/models/<training_key>.pt``) is run on the cell's
+held-out TRAINING meshes, once in the model's own mode, once with the
+uniform collapse and once per ``--with`` (SegmentConfig overrides of the
+model's settings, e.g. another collapse priority), and for every level this prints the means over meshes of:
+
+* ``z99`` / ``zmax``: the 99th percentile and the maximum over faces of each
+  face's largest standardised input (|x - mean| / std with the model's
+  level-0 statistics): how far a level sits outside what the network was
+  fitted on;
+* ``giant``: the largest number of input faces that one face of the level
+  stands for, and ``giant_share``: the share of input faces that sit in a
+  face standing for more than 8x the level's mean (weighted by input faces,
+  so a few giant faces cannot hide among many small ones);
+* ``auc``: the ROC AUC of the attention for faces within 2 rings of another
+  label (the pooled ground truth) against the rest, on the levels that are
+  collapsed (0.5: attention says nothing about boundaries).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from sklearn.metrics import roc_auc_score
+
+from anseg import datasets
+from anseg.collapse import CollapseWarning, compose, pool_labels, rings_to_other_label
+from anseg.pipeline import Segmenter, build_levels
+from anseg.validate import parse_overrides
+
+GIANT_FACTOR = 8
+BAND_RINGS = 2
+
+
+def level_statistics(item, model: Segmenter, config) -> list[dict]:
+    """The statistics of every level of one mesh's hierarchy (module docstring)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CollapseWarning)
+        levels = build_levels(item.mesh, model, config)
+    rows, records = [], []
+    for index, level in enumerate(levels):
+        raw = level.feature_matrix(index, len(levels), config.local_scale)
+        largest = np.abs(model.standardize(raw)).max(axis=1)
+        stands_for = np.bincount(compose(records), minlength=level.mesh.n_faces) if records else np.ones(level.mesh.n_faces)
+        mean = stands_for.sum() / level.mesh.n_faces
+        row = {"level": index, "faces": level.mesh.n_faces, "z99": float(np.percentile(largest, 99)),
+               "zmax": float(largest.max()), "giant": int(stands_for.max()),
+               "giant_share": float(stands_for[stands_for > GIANT_FACTOR * mean].sum() / stands_for.sum()), "auc": np.nan}
+        if level.attention is not None:
+            target = pool_labels(records, item.labels, item.mesh.face_areas, model.n_classes) if records else item.labels
+            band = rings_to_other_label(level.mesh, target) <= BAND_RINGS
+            if 0 < band.sum() < len(band):
+                row["auc"] = float(roc_auc_score(band, level.attention))
+        rows.append(row)
+        if level.record is not None:
+            records.append(level.record)
+    return rows
+
+
+def _mean(values) -> float:
+    """The mean of the values that are not NaN (NaN when none is)."""
+    values = np.asarray(values, dtype=float)
+    return float(values[~np.isnan(values)].mean()) if (~np.isnan(values)).any() else float("nan")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("cells", nargs="+", type=Path, help="stored validation cells (results/validation/runs/<key>.json)")
+    parser.add_argument("--with", dest="variants", action="append", default=[],
+                        help="field=value[,...]: also run the hierarchy with these SegmentConfig overrides")
+    parser.add_argument("--out", type=Path, help="also write the rows as CSV")
+    args = parser.parse_args(argv)
+
+    import torch
+
+    torch.set_num_threads(1)
+    table = []
+    for path in args.cells:
+        cell = json.loads(path.read_text())
+        model = Segmenter.load(path.parent.parent / "models" / f"{cell['training_key']}.pt")
+        meshes = datasets.load(cell["dataset"], cell["category"], "train", cell["split_index"], progress=False)
+        held_out = [m for m in meshes if m.name in set(cell["held_out"])]
+        variants = {model.config.mode: {}, "uniform": {"mode": "uniform"}}
+        variants.update({text: parse_overrides(text)[0] for text in args.variants})
+        for name, overrides in variants.items():
+            config = replace(model.config, **overrides)
+            per_mesh = [level_statistics(item, model, config) for item in held_out]
+            for index in range(len(per_mesh[0])):
+                values = {k: _mean([rows[index][k] for rows in per_mesh]) for k in per_mesh[0][index] if k != "level"}
+                table.append({"arm": cell["arm"], "category": cell["category"], "hierarchy": name, "level": index, **values})
+    print(f"{'arm':<16} {'category':<10} {'hierarchy':<18} lvl  faces    z99     zmax   giant  share  auc")
+    for r in table:
+        print(f"{r['arm']:<16} {r['category']:<10} {r['hierarchy']:<18} {r['level']:>3} {r['faces']:6.0f} {r['z99']:7.1f} "
+              f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['auc']:5.2f}")
+    if args.out:
+        with open(args.out, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(table[0]))
+            writer.writeheader()
+            writer.writerows(table)
+
+
+if __name__ == "__main__":
+    main()
