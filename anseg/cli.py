@@ -1,11 +1,13 @@
-"""The ``anseg`` command: train, segment, evaluate, features.
+"""The ``anseg`` command: train, segment, evaluate, features, validate.
 
 Examples::
 
     anseg train --dataset psb --category Human --split 0 -o human.pt
+    anseg train --category Human --config paper --set train.width=128 -o human_paper.pt
     anseg segment human.pt mesh.off -o mesh_labels.ply
     anseg evaluate human.pt --dataset psb --category Human --split 0
     anseg features mesh.off -o mesh_features.npy
+    anseg validate --study width --arm default --arm wide:train.width=128 --categories Human Hand
 
 Data sets are read from ``--data`` or ``$ANSEG_DATA``. Bad input ends with a
 one-line message and a non-zero exit status, never a traceback.
@@ -32,10 +34,10 @@ def _add_data_options(parser: argparse.ArgumentParser) -> None:
 
 def _parser() -> argparse.ArgumentParser:
     from anseg import __version__
+    from anseg.configs import NAMED
     from anseg.pipeline import MODES, SegmentConfig
-    from anseg.train import TrainConfig
 
-    segment_defaults, train_defaults = SegmentConfig(), TrainConfig()
+    segment_defaults = SegmentConfig()
     parser = argparse.ArgumentParser(prog="anseg", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
     parser.add_argument("--version", action="version", version=f"anseg {__version__}")
@@ -44,12 +46,16 @@ def _parser() -> argparse.ArgumentParser:
     train = commands.add_parser("train", help="train a model on one category", description="Train on a split's training meshes and save the model.")
     _add_data_options(train)
     train.add_argument("-o", "--output", required=True, type=Path, help="model file to write (.pt)")
-    train.add_argument("--mode", choices=MODES, default=segment_defaults.mode, help="downsampling mode (default: %(default)s)")
-    train.add_argument("--cycles", type=int, default=segment_defaults.cycles, help="downsampling cycles N (default: %(default)s)")
-    train.add_argument("--ratio", type=float, default=segment_defaults.ratio, help="faces kept per cycle (default: %(default)s)")
-    train.add_argument("--epochs", type=int, default=train_defaults.epochs, help="epochs (default: %(default)s)")
-    train.add_argument("--seed", type=int, default=train_defaults.seed, help="random seed (default: %(default)s)")
-    train.add_argument("--device", default=train_defaults.device, help="cpu, cuda or auto (default: %(default)s)")
+    train.add_argument("--config", choices=list(NAMED), default="default",
+                       help="named configuration (anseg.configs; default: %(default)s)")
+    train.add_argument("--set", dest="overrides", default="", metavar="FIELD=VALUE[,...]",
+                       help="settings on top of the configuration: SegmentConfig fields, TrainConfig ones as train.FIELD")
+    train.add_argument("--mode", choices=MODES, help="downsampling mode (default: the configuration's)")
+    train.add_argument("--cycles", type=int, help="downsampling cycles N (default: the configuration's)")
+    train.add_argument("--ratio", type=float, help="faces kept per cycle (default: the configuration's)")
+    train.add_argument("--epochs", type=int, help="epochs (default: the configuration's)")
+    train.add_argument("--seed", type=int, help="random seed (default: the configuration's)")
+    train.add_argument("--device", help="cpu, cuda or auto (default: the configuration's)")
     train.add_argument("--evaluate", action="store_true", help="also evaluate on the split's test meshes")
 
     segment = commands.add_parser("segment", help="segment a mesh file with a trained model",
@@ -71,6 +77,9 @@ def _parser() -> argparse.ArgumentParser:
     feats.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
     feats.add_argument("-o", "--output", required=True, type=Path, help=".npy file to write")
     feats.add_argument("--groups", default=",".join(segment_defaults.groups), help="comma-separated feature groups (default: %(default)s)")
+
+    commands.add_parser("validate", help="compare settings by cross-validation on training meshes", add_help=False,
+                        description="anseg.validate; `anseg validate --help` lists its options.")
     return parser
 
 
@@ -85,13 +94,18 @@ def _load_model(path: Path):
 
 def _train(args) -> None:
     from anseg import datasets
+    from anseg.configs import overrides
     from anseg.pipeline import SegmentConfig
     from anseg.train import TrainConfig, evaluate, fit
 
+    segment, train = overrides(args.config, args.overrides)
+    flags = {"mode": args.mode, "cycles": args.cycles, "ratio": args.ratio, "seed": args.seed}
+    segment.update({k: v for k, v in flags.items() if v is not None})
+    flags = {"epochs": args.epochs, "seed": args.seed, "device": args.device}
+    train.update({k: v for k, v in flags.items() if v is not None})
+    config, settings = SegmentConfig(**segment), TrainConfig(**train)  # a bad value fails before the data is read
     train_set = datasets.load(args.dataset, category=args.category, split="train", split_index=args.split, root=args.data)
-    config = SegmentConfig(mode=args.mode, cycles=args.cycles, ratio=args.ratio, seed=args.seed)
-    model = fit(train_set, train_set[0].label_names, config, TrainConfig(epochs=args.epochs, seed=args.seed, device=args.device),
-                checkpoint=args.output.with_suffix(".ckpt"))
+    model = fit(train_set, train_set[0].label_names, config, settings, checkpoint=args.output.with_suffix(".ckpt"))
     model.save(args.output)
     args.output.with_suffix(".ckpt").unlink(missing_ok=True)
     print(f"model written to {args.output}")
@@ -161,6 +175,11 @@ def main(argv: list[str] | None = None) -> int:
     from anseg.datasets import DatasetError
     from anseg.mesh import MeshError
 
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["validate"]:  # its own parser, shared with python -m anseg.validate
+        from anseg.validate import main as validate
+
+        return validate(argv[1:])
     args = _parser().parse_args(argv)
     handlers = {"train": _train, "segment": _segment, "evaluate": _evaluate, "features": _features}
     try:

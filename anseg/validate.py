@@ -39,12 +39,13 @@ import csv
 import json
 import sys
 import time
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from anseg.cache import atomic_write
+from anseg.configs import NAMED, overrides
 from anseg.pipeline import SegmentConfig, Segmenter
 from anseg.train import Experiment, TrainConfig, environment, evaluate, fit
 
@@ -65,39 +66,20 @@ class Arm:
 
     @classmethod
     def parse(cls, text: str) -> "Arm":
-        """``"name:field=value,train.field=value"``; a bare ``name`` (e.g. ``default``) has no overrides."""
+        """``"name:field=value,train.field=value"``, overrides of the defaults.
+
+        An arm named after a configuration of :mod:`anseg.configs` (``paper``)
+        starts from that configuration: ``"paper:combine=all"``.
+        """
         name, _, spec = text.partition(":")
         if not name:
             raise ValueError(f"arm {text!r} has no name; write name:field=value,...")
-        segment, train = parse_overrides(spec)
+        segment, train = overrides(name if name in NAMED else "default", spec)
         return cls(name, segment, train)
 
     def configs(self, epochs: int | None = None) -> tuple[SegmentConfig, TrainConfig]:
         train = {**({"epochs": epochs} if epochs else {}), **self.train}
         return SegmentConfig(**self.segment), TrainConfig(**train)
-
-
-def parse_overrides(text: str) -> tuple[dict, dict]:
-    """``"once_per_pass=true,train.width=128"`` -> (SegmentConfig, TrainConfig) keyword arguments, typed like the defaults."""
-    defaults = {"": SegmentConfig(), "train.": TrainConfig()}
-    types = {prefix + f.name: type(getattr(config, f.name)) for prefix, config in defaults.items() for f in fields(config)}
-    segment, train = {}, {}
-    for item in filter(None, text.split(",")):
-        name, sep, value = item.partition("=")
-        if name not in types or not sep:
-            raise ValueError(f"unknown setting {item!r}; write field=value with one of: {', '.join(types)}")
-        kind = types[name]
-        if kind is bool:
-            typed = value.lower() in ("1", "true", "yes", "on")
-        elif kind is tuple:
-            typed = tuple(filter(None, value.split("+")))
-        else:
-            try:
-                typed = kind(value)
-            except ValueError:
-                raise ValueError(f"{name}: {value!r} is not a {kind.__name__}") from None
-        (train if name.startswith("train.") else segment)[name.removeprefix("train.")] = typed
-    return segment, train
 
 
 def fold_of(n_meshes: int, n_folds: int) -> np.ndarray:

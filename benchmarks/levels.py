@@ -35,8 +35,8 @@ from sklearn.metrics import roc_auc_score
 
 from anseg import datasets
 from anseg.collapse import CollapseWarning, compose, pool_labels, rings_to_other_label
+from anseg.configs import parse_overrides
 from anseg.pipeline import Segmenter, build_levels
-from anseg.validate import parse_overrides
 
 GIANT_FACTOR = 8
 BAND_RINGS = 2

@@ -17,7 +17,7 @@ def run_cli(*args, cwd=None):
     return subprocess.run([sys.executable, "-m", "anseg.cli", *map(str, args)], capture_output=True, text=True, cwd=cwd)
 
 
-@pytest.mark.parametrize("command", [[], ["train"], ["segment"], ["evaluate"], ["features"]])
+@pytest.mark.parametrize("command", [[], ["train"], ["segment"], ["evaluate"], ["features"], ["validate"]])
 def test_help_everywhere(command, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main([*command, "--help"])

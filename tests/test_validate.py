@@ -9,8 +9,9 @@ import pytest
 import torch
 
 from anseg import validate
+from anseg.configs import parse_overrides
 from anseg.train import Experiment
-from anseg.validate import Arm, Cell, fold_of, paired_difference, parse_overrides
+from anseg.validate import Arm, Cell, fold_of, paired_difference
 
 SMALL = {"cycles": 2, "clusters": 4}
 SYNTHETIC = dict(dataset="synthetic", options=(("n_shapes", 8),))

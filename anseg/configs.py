@@ -1,0 +1,74 @@
+"""Named configurations, each bundling segmentation and training settings, and ``field=value`` overrides.
+
+* ``default``: the project's reading, :class:`SegmentConfig` and
+  :class:`TrainConfig` as they are; every default there is chosen by
+  cross-validation on training meshes (:mod:`anseg.validate`).
+* ``paper``: the plain reading of the paper. The features of Algorithm 1,
+  line 1 (edge-encoded vector, inner angles, edge-length ratios, GC, SDF,
+  AGD; no multi-scale ``smooth`` group), labels from the coarsest level, the
+  attention trained through the class loss alone (``attention_weight=0``),
+  the collapse in score order, and every switch this project added off.
+
+``configuration("paper", "combine=all,train.width=128")`` gives the pair with
+overrides on top; the same names and override syntax serve the CLI
+(``anseg train --config paper --set ...``), the validation arms and the notebooks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+
+from anseg.features import DEFAULT_GROUPS
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig
+
+# Each name's departures from the dataclass defaults: (SegmentConfig fields, TrainConfig fields).
+NAMED = {
+    "default": ({}, {}),
+    "paper": (
+        {"groups": DEFAULT_GROUPS, "combine": "coarsest", "local_scale": "unit_area", "priority": "score",
+         "once_per_pass": False},
+        {"attention_weight": 0.0, "embed_norm": False},
+    ),
+}
+
+
+def parse_overrides(text: str) -> tuple[dict, dict]:
+    """``"once_per_pass=true,train.width=128"`` -> (SegmentConfig, TrainConfig) keyword arguments, typed like the defaults.
+
+    TrainConfig fields take a ``train.`` prefix; a tuple (``groups``) is
+    written with ``+`` between its items (``groups=edge+gc``).
+    """
+    defaults = {"": SegmentConfig(), "train.": TrainConfig()}
+    types = {prefix + f.name: type(getattr(config, f.name)) for prefix, config in defaults.items() for f in fields(config)}
+    segment, train = {}, {}
+    for item in filter(None, text.split(",")):
+        name, sep, value = item.partition("=")
+        if name not in types or not sep:
+            raise ValueError(f"unknown setting {item!r}; write field=value with one of: {', '.join(types)}")
+        kind = types[name]
+        if kind is bool:
+            typed = value.lower() in ("1", "true", "yes", "on")
+        elif kind is tuple:
+            typed = tuple(filter(None, value.split("+")))
+        else:
+            try:
+                typed = kind(value)
+            except ValueError:
+                raise ValueError(f"{name}: {value!r} is not a {kind.__name__}") from None
+        (train if name.startswith("train.") else segment)[name.removeprefix("train.")] = typed
+    return segment, train
+
+
+def overrides(name: str, text: str = "") -> tuple[dict, dict]:
+    """The named configuration's departures from the defaults, with ``text``'s overrides on top."""
+    if name not in NAMED:
+        raise ValueError(f"unknown configuration {name!r}; named configurations: {', '.join(NAMED)}")
+    segment, train = parse_overrides(text)
+    return {**NAMED[name][0], **segment}, {**NAMED[name][1], **train}
+
+
+def configuration(name: str = "default", text: str = "") -> tuple[SegmentConfig, TrainConfig]:
+    """The (SegmentConfig, TrainConfig) pair of a named configuration, with ``text``'s overrides on top."""
+    segment, train = overrides(name, text)
+    return SegmentConfig(**segment), TrainConfig(**train)

@@ -1,0 +1,38 @@
+"""Named configurations and the field=value override syntax shared by the CLI, validation and notebooks."""
+
+from __future__ import annotations
+
+import pytest
+
+from anseg.cli import main
+from anseg.configs import configuration, overrides
+from anseg.features import DEFAULT_GROUPS
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig
+
+
+def test_default_is_the_dataclass_defaults():
+    assert configuration("default") == (SegmentConfig(), TrainConfig())
+
+
+def test_paper_is_the_plain_reading():
+    segment, train = configuration("paper")
+    assert segment.groups == DEFAULT_GROUPS and "smooth" not in segment.groups
+    assert segment.combine == "coarsest" and segment.priority == "score" and segment.local_scale == "unit_area"
+    assert train.attention_weight == 0.0 and not train.embed_norm
+
+
+def test_overrides_go_on_top_of_a_named_configuration():
+    segment, train = configuration("paper", "combine=all,train.width=128")
+    assert segment.combine == "all" and train.width == 128 and train.attention_weight == 0.0
+    assert overrides("default", "ratio=0.4") == ({"ratio": 0.4}, {})
+    with pytest.raises(ValueError, match="unknown configuration"):
+        configuration("fancy")
+
+
+def test_cli_train_refuses_a_bad_setting_before_reading_data(capsys):
+    assert main(["train", "--config", "paper", "--set", "train.width=wide", "-o", "x.pt"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "train.width" in err
+    assert main(["train", "--set", "combine=some", "-o", "x.pt"]) == 2
+    assert "combine must be one of" in capsys.readouterr().err
