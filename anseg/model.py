@@ -36,6 +36,9 @@ Choices, and why:
   absolute position in the sequence carries no meaning that transfers; it is exposed
   as a parameter to be measured (Fourier features of the normalised position t/(T-1)
   through a learned Linear).
+- **Depth 0** is the paper's "without downsampling" control (Table IV): no tokens, no
+  transformer and no attention module, a per-face classifier on the features alone
+  (logits = head(e)); its attention is flat (1 at every face).
 - **Initialisation**: the paper draws initial weights from "N(0, 0.001)", read here as
   variance 0.001 (std ~ 0.0316), for every Linear weight; biases are zero and LayerNorm
   keeps its default (weight 1, bias 0).
@@ -76,9 +79,11 @@ class ModelConfig:
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
 
     def __post_init__(self) -> None:
-        for name in ("in_features", "n_classes", "width", "depth", "heads", "patch_size"):
+        for name in ("in_features", "n_classes", "width", "heads", "patch_size"):
             if getattr(self, name) < 1:
                 raise ValueError(f"ModelConfig.{name} must be >= 1, got {getattr(self, name)}")
+        if self.depth < 0:
+            raise ValueError(f"ModelConfig.depth must be >= 0, got {self.depth}")
         if self.width % self.heads:
             raise ValueError(f"ModelConfig.width ({self.width}) must be divisible by heads ({self.heads})")
         if not 0.0 <= self.dropout < 1.0:
@@ -248,8 +253,9 @@ class AttentionSegmenter(nn.Module):
         self.position = nn.Linear(2 * config.position_frequencies, width) if config.position_frequencies else None
         self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))
         self.norm_out = nn.LayerNorm(width)
+        context = width if config.depth else 0  # depth 0: the face's own embedding only
         self.head = nn.Sequential(
-            nn.Linear(2 * width, width), nn.GELU(), nn.Dropout(config.dropout), nn.Linear(width, config.n_classes)
+            nn.Linear(width + context, width), nn.GELU(), nn.Dropout(config.dropout), nn.Linear(width, config.n_classes)
         )
         for module in self.modules():
             if isinstance(module, nn.Linear):
@@ -307,6 +313,10 @@ class AttentionSegmenter(nn.Module):
         real = mask.unsqueeze(-1)
         # masked_fill, not multiply: padding may hold NaN or inf and must not leak.
         embedded = self.embed(grid.masked_fill(~real, 0.0)).masked_fill(~real, 0.0)
+        if not self.blocks:  # the per-face classifier (module docstring)
+            if attention_grad:
+                raise ValueError("a depth-0 model has no attention to train")
+            return self.head(embedded), (mask.to(embedded.dtype) if need_attention else None)
         share = torch.softmax(self.share_score(embedded).squeeze(-1).masked_fill(~mask, -math.inf), dim=1)
         h = (share.unsqueeze(-1) * embedded).sum(dim=1)
         if self.position is not None:

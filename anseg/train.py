@@ -176,6 +176,8 @@ def fit(
     train = train or TrainConfig()
     if not train_set:
         raise ValueError("no training meshes")
+    if train.depth == 0 and config.mode != "none":
+        raise ValueError("depth 0 (a per-face classifier without attention) needs mode 'none': nothing would rank the collapses")
     device = resolve_device(train.device)
     seed_everything(train.seed)
     groups = level_zero_features(train_set, config, progress=progress)

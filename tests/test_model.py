@@ -205,3 +205,20 @@ def test_load_rejects_foreign_files(tmp_path):
     torch.save({"weights": torch.zeros(2)}, path)
     with pytest.raises(ValueError, match="not a model"):
         load(path)
+
+
+def test_depth_zero_is_a_per_face_classifier():
+    g = torch.Generator().manual_seed(1)
+    torch.manual_seed(1)
+    model = AttentionSegmenter(ModelConfig(in_features=5, n_classes=3, width=16, depth=0, patch_size=8)).eval()
+    x = torch.randn(50, 5, generator=g)
+    patch, slot, n_patches = random_layout(50, 8, g)
+    out = model(x, patch, slot, n_patches)
+    other = x.clone()
+    other[1:] = torch.randn(49, 5, generator=g)  # every other face changes; face 0's logits must not
+    assert torch.allclose(model(other, patch, slot, n_patches).logits[0], out.logits[0])
+    assert torch.equal(out.attention, torch.ones(50))
+    with pytest.raises(ValueError, match="no attention"):
+        model(x, patch, slot, n_patches, attention_grad=True)
+    with pytest.raises(ValueError, match="depth"):
+        ModelConfig(in_features=5, n_classes=3, depth=-1)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -100,3 +102,11 @@ def test_settings_added_later_change_the_key_only_away_from_their_old_value():
     base = Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig())
     assert Experiment("psb", "Human", 0, SegmentConfig(local_scale="relative"), TrainConfig()).key() != base.key()
     assert Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(embed_norm=True)).key() != base.key()
+
+
+def test_depth_zero_trains_only_without_downsampling(split):
+    train_set, _ = split
+    with pytest.raises(ValueError, match="needs mode 'none'"):
+        fit(train_set, train_set[0].label_names, SMALL, TrainConfig(depth=0, epochs=1), progress=False)
+    model = fit(train_set[:2], train_set[0].label_names, replace(SMALL, mode="none"), TrainConfig(depth=0, epochs=1), progress=False)
+    assert len(model.network.blocks) == 0
