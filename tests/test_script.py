@@ -1,0 +1,40 @@
+"""The Python API from a plain script without a main guard: the parallel feature path must not re-run the script."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+SCRIPT = textwrap.dedent('''
+    import anseg
+    from anseg import datasets, features
+    from anseg.pipeline import SegmentConfig, Segmenter, segment
+    from anseg.train import TrainConfig, evaluate, fit
+
+    print("script body ran")  # printed once: a worker that re-imports this file would print it again
+    train = datasets.load("synthetic", "figure", "train", n_shapes=20, progress=False)
+    test = datasets.load("synthetic", "figure", "test", n_shapes=20, progress=False)
+    assert sum(m.mesh.n_faces for m in train) > features.POOL_MIN_FACES  # so the feature pool really starts
+    model = fit(train, train[0].label_names, SegmentConfig(cycles=1, clusters=4), TrainConfig(epochs=1, width=16, depth=1),
+                progress=False)
+    print("scores", evaluate(model, test, progress=False)["smoothed"]["unit_area"])
+    model.save("model.pt")
+    anseg.save_mesh("mesh.off", test[0].mesh)
+    result = segment(anseg.load_mesh("mesh.off"), Segmenter.load("model.pt"))
+    print("labels", len(result.labels))
+''')
+
+
+@pytest.mark.slow
+def test_a_plain_script_without_main_guard_runs_with_a_cold_cache(tmp_path):
+    (tmp_path / "script.py").write_text(SCRIPT)
+    env = {**os.environ, "ANSEG_CACHE": str(tmp_path / "cache")}
+    run = subprocess.run([sys.executable, "script.py"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.count("script body ran") == 1
+    assert "labels" in run.stdout
+    assert len(list((tmp_path / "cache" / "features").glob("*.npy"))) >= 20
