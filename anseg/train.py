@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import platform
 import random
@@ -52,12 +53,22 @@ from anseg.model import AttentionSegmenter, ModelConfig
 from anseg.pipeline import SegmentConfig, Segmenter, build_levels, input_groups, model_inputs, segment
 
 
+SCHEDULES = ("constant", "cosine")
+
+
 @dataclass
 class TrainConfig:
-    """Optimisation settings; the network's width and depth live here too."""
+    """Optimisation settings; the network's width and depth live here too.
+
+    ``schedule``: ``"constant"`` keeps ``lr`` for every step (the paper);
+    ``"cosine"`` decays it from ``lr`` to 0 over the run's steps, so that the
+    last epochs, whose model is the one kept, settle instead of moving at
+    full step size.
+    """
 
     epochs: int = 60
     lr: float = 1e-3
+    schedule: str = "constant"
     width: int = 64
     depth: int = 2
     heads: int = 4
@@ -72,6 +83,15 @@ class TrainConfig:
     def __post_init__(self):
         if self.epochs < 1 or self.recollapse_every < 1:
             raise ValueError("epochs and recollapse_every must be >= 1")
+        if self.schedule not in SCHEDULES:
+            raise ValueError(f"schedule must be one of {SCHEDULES}, got {self.schedule!r}")
+
+
+def learning_rate(train: TrainConfig, step: int, total_steps: int) -> float:
+    """The learning rate of gradient step ``step`` (0-based) of ``total_steps`` under ``train.schedule``."""
+    if train.schedule == "cosine":
+        return 0.5 * train.lr * (1 + math.cos(math.pi * step / total_steps))
+    return train.lr
 
 
 def resolve_device(device: str) -> torch.device:
@@ -190,6 +210,7 @@ def fit(
     ).to(device)
     model = Segmenter(network, config, mean, std, list(label_names))
     optimizer = torch.optim.Adam(network.parameters(), lr=train.lr)
+    total_steps = train.epochs * len(train_set)
     settings = {"segment": asdict(config), "train": asdict(train), "meshes": [m.name for m in train_set]}
     start = _resume(checkpoint, settings, network, optimizer) if checkpoint else 0
 
@@ -201,7 +222,9 @@ def fit(
             examples = [_examples(model, m.mesh, m.labels, g, train, device) for m, g in zip(train_set, groups)]
         network.train()
         losses, accuracies = [], []
-        for i in order.permutation(len(examples)):
+        for step, i in enumerate(order.permutation(len(examples)), start=epoch * len(examples)):
+            for group in optimizer.param_groups:
+                group["lr"] = learning_rate(train, step, total_steps)
             loss, accuracy = _loss(model, examples[i], train)
             optimizer.zero_grad()
             loss.backward()
@@ -264,7 +287,7 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
 # the value the older results ran with: at that value a field stays out of the key.
 SETTINGS_ADDED_LATER = {
     "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score"},
-    "train": {"embed_norm": False},
+    "train": {"embed_norm": False, "schedule": "constant"},
 }
 
 

@@ -110,3 +110,14 @@ def test_depth_zero_trains_only_without_downsampling(split):
         fit(train_set, train_set[0].label_names, SMALL, TrainConfig(depth=0, epochs=1), progress=False)
     model = fit(train_set[:2], train_set[0].label_names, replace(SMALL, mode="none"), TrainConfig(depth=0, epochs=1), progress=False)
     assert len(model.network.blocks) == 0
+
+
+def test_learning_rate_schedules():
+    from anseg.train import learning_rate
+
+    constant, cosine = TrainConfig(lr=0.01), TrainConfig(lr=0.01, schedule="cosine")
+    assert [learning_rate(constant, s, 10) for s in (0, 9)] == [0.01, 0.01]
+    assert learning_rate(cosine, 0, 10) == 0.01 and learning_rate(cosine, 5, 10) == pytest.approx(0.005)
+    assert 0 < learning_rate(cosine, 9, 10) < 0.0003
+    with pytest.raises(ValueError, match="schedule"):
+        TrainConfig(schedule="step")
