@@ -158,6 +158,18 @@ def test_agd_is_highest_at_the_ends_of_an_elongated_shape():
     assert agd[:, 1].min() == 0.0 and agd[:, 1].max() == 1.0
 
 
+def test_hks_is_flat_on_a_sphere_and_peaks_at_the_tips_of_an_elongated_shape():
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    flat = features.compute_groups(Mesh(sphere.vertices, sphere.faces), ["hks"])["hks"]
+    assert flat.std(axis=0).max() < 0.05 and np.abs(flat).max() < 0.1  # every point alike: hks equals the mean
+    mesh = Mesh(sphere.vertices * [3.0, 1.0, 1.0], sphere.faces)
+    hks = features.compute_groups(mesh, ["hks"])["hks"]
+    x = np.abs(mesh.face_centroids[:, 0])
+    middle = features.HKS_TIMES.index(0.032)
+    assert spearmanr(hks[:, middle], x).statistic > 0.9  # heat stays longer at the tips
+    assert hks.shape[1] == len(features.HKS_TIMES)
+
+
 def test_agd_stays_within_each_connected_component():
     sphere = trimesh.creation.icosphere(subdivisions=2)
     far = sphere.copy()
