@@ -120,6 +120,8 @@ _FLAT_DEFECT = 1e-9
 _RAY_OFFSET = 1e-7
 _RAYS_PER_CALL = 1 << 20  # bounds the memory of the ray arrays on big meshes
 _BVH_LEAF = 4  # triangles per leaf of the ray-casting tree
+DIRECT_SOLVE_MAX_VERTICES = 30_000  # the smooth group's diffusion: sparse LU up to here, conjugate gradients above
+DIFFUSION_RTOL = 1e-10  # conjugate gradients of the smooth group: relative residual
 POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces in all (about a second of work)
 
 
@@ -585,9 +587,20 @@ def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -
     discretisation). Faces go to vertices by area-weighted averaging and come
     back as the mean of their corners; with barycentric masses both moves,
     and the diffusion, keep the area integral of every signal exactly.
+
+    The system is symmetric positive definite. Up to
+    :data:`DIRECT_SOLVE_MAX_VERTICES` vertices a sparse LU factorisation
+    solves it (0.12 s at 20K faces, half the time of the iterative solve);
+    its fill grows much faster than the mesh (20 s per radius at 82K faces,
+    more than 10 minutes at 330K), so larger meshes use conjugate gradients
+    with a Jacobi preconditioner (:data:`DIFFUSION_RTOL`), each radius
+    starting from the last one's solution: about 1 s at 82K faces, 10 s at
+    330K, and the same values as the LU to a relative 1e-10 (1e-8 after the
+    float32 rounding of the stored features).
     """
     import igl
-    from scipy.sparse.linalg import splu
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import cg, splu
 
     v, f = mesh.vertices, mesh.faces
     mass = igl.massmatrix(v, f, igl.MASSMATRIX_TYPE_BARYCENTRIC)
@@ -596,11 +609,21 @@ def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -
     weighted = np.zeros((mesh.n_vertices, signals.shape[1]))
     np.add.at(weighted, f.ravel(), np.repeat(signals, 3, axis=0) * corner_weight)  # M x
     out = []
+    solution = np.zeros_like(weighted)
     for radius in radii:
-        system = (mass - (radius**2 / 4.0) * laplacian).tocsc()
-        # symmetric positive definite: a symmetric ordering and no pivoting keep the factor small
-        factor = splu(system, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        out.append(factor.solve(weighted)[f].mean(axis=1))
+        system = (mass - (radius**2 / 4.0) * laplacian).tocsr()
+        if mesh.n_vertices <= DIRECT_SOLVE_MAX_VERTICES:
+            # a symmetric ordering and no pivoting keep the factor of an SPD matrix small
+            factor = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            out.append(factor.solve(weighted)[f].mean(axis=1))
+            continue
+        jacobi = diags(1.0 / system.diagonal())
+        for column in range(weighted.shape[1]):
+            solution[:, column], info = cg(system, weighted[:, column], x0=solution[:, column], rtol=DIFFUSION_RTOL,
+                                           atol=0.0, M=jacobi, maxiter=10 * mesh.n_vertices)
+            if info != 0:
+                raise MeshError(f"the multi-scale diffusion did not converge on {mesh!r}; please report the mesh")
+        out.append(solution[f].mean(axis=1))
     return out
 
 
