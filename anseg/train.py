@@ -286,7 +286,7 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
 # Fields of SegmentConfig ("segment") and TrainConfig ("train") introduced after results were stored, with
 # the value the older results ran with: at that value a field stays out of the key.
 SETTINGS_ADDED_LATER = {
-    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score"},
+    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf")},
     "train": {"embed_norm": False, "schedule": "constant"},
 }
 

@@ -97,3 +97,16 @@ def test_relative_local_scale_puts_a_coarse_level_on_the_fine_scale():
     np.testing.assert_allclose(relative[0]["edge"][0], relative[1]["edge"][0], atol=1e-9)
     np.testing.assert_array_equal(relative[0]["angles"], coarse["angles"])  # dimensionless groups stay
     assert input_groups(coarse, "unit_area") is coarse
+
+
+def test_collapse_weights_clip_the_density_range_around_the_median():
+    from anseg.pipeline import collapse_weights
+
+    attention = np.array([1e-9, 0.01, 1.0, 1.0, 1.0, 50.0])
+    clipped = collapse_weights(attention, 16.0)
+    assert clipped.max() / clipped.min() == pytest.approx(16.0)
+    assert clipped[2] == 1.0 and clipped[0] == pytest.approx(0.25) and clipped[-1] == pytest.approx(4.0)
+    unclipped = collapse_weights(attention, float("inf"))
+    assert (unclipped > 0).all() and unclipped[-1] == 50.0
+    with pytest.raises(ValueError, match="density_range"):
+        SegmentConfig(density_range=0.5)
