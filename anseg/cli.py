@@ -18,11 +18,19 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 EXIT_BAD_INPUT = 2
+
+
+def _non_negative(text: str) -> float:
+    value = float(text)
+    if not value >= 0:
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text}")
+    return value
 
 
 def _add_data_options(parser: argparse.ArgumentParser) -> None:
@@ -64,7 +72,7 @@ def _parser() -> argparse.ArgumentParser:
     segment.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
     segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
     segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
-    segment.add_argument("--smooth-weight", type=float, default=None, help="graph-cut weight (default: the model's; 0 turns smoothing off)")
+    segment.add_argument("--smooth-weight", type=_non_negative, default=None, help="graph-cut weight (default: the model's; 0 turns smoothing off)")
     segment.add_argument("--repair", action="store_true", help="merge duplicate vertices and drop degenerate faces first; labels follow the input faces")
 
     evaluate = commands.add_parser("evaluate", help="score a trained model on a split's test meshes",
@@ -77,6 +85,7 @@ def _parser() -> argparse.ArgumentParser:
     feats.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
     feats.add_argument("-o", "--output", required=True, type=Path, help=".npy file to write")
     feats.add_argument("--groups", default=",".join(segment_defaults.groups), help="comma-separated feature groups (default: %(default)s)")
+    feats.add_argument("--repair", action="store_true", help="repair the mesh first, as `segment --repair` does; rows follow the repaired faces")
 
     commands.add_parser("validate", help="compare settings by cross-validation on training meshes", add_help=False,
                         description="anseg.validate; `anseg validate --help` lists its options.")
@@ -166,7 +175,12 @@ def _evaluate(args) -> None:
 def _features(args) -> None:
     from anseg import features, load_mesh
 
-    x = features.compute(load_mesh(args.mesh), groups=[g.strip() for g in args.groups.split(",") if g.strip()])
+    from anseg import repair
+
+    mesh = load_mesh(args.mesh, validate=not args.repair)
+    if args.repair:
+        mesh, _ = repair(mesh)
+    x = features.compute(mesh, groups=[g.strip() for g in args.groups.split(",") if g.strip()])
     np.save(args.output, x)
     print(f"{x.shape[0]} faces x {x.shape[1]} features -> {args.output}")
 
@@ -183,7 +197,12 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     handlers = {"train": _train, "segment": _segment, "evaluate": _evaluate, "features": _features}
     try:
-        handlers[args.command](args)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", UserWarning)
+            handlers[args.command](args)
+        for warning in caught:  # ours, one line each, not in Python's file:line form
+            if warning.category.__module__.startswith("anseg"):
+                print(f"anseg {args.command}: warning: {warning.message}", file=sys.stderr)
     except (MeshError, DatasetError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         print(f"anseg {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

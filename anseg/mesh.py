@@ -199,7 +199,7 @@ class Mesh:
         """Raise MeshError unless the mesh is usable; return self for chaining.
 
         Checks, in order: not empty, finite coordinates, face indices in
-        range, no zero-area faces, no non-manifold edges.
+        range, no zero-area faces, no repeated faces, no non-manifold edges.
         """
         if self.n_faces == 0 or self.n_vertices == 0:
             raise MeshError("mesh is empty (no faces or no vertices)")
@@ -217,6 +217,10 @@ class Mesh:
                 f"{len(degenerate)} zero-area faces (first: {int(degenerate[0])}); "
                 "anseg.repair(mesh) removes them and keeps a map to the input faces"
             )
+        repeated = self.n_faces - len(np.unique(np.sort(self.faces, axis=1), axis=0))
+        if repeated:
+            raise MeshError(f"{repeated} faces repeat another face's three vertices; "
+                            "anseg.repair(mesh) (--repair on the command line) drops them and keeps a map to the input faces")
         nonmanifold = int((self.edge_face_counts > 2).sum())
         if nonmanifold:
             raise MeshError(f"{nonmanifold} non-manifold edges (shared by more than two faces); anseg needs a manifold mesh")

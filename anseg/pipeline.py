@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import warnings
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -150,7 +151,8 @@ class Segmenter:
             network = AttentionSegmenter(ModelConfig(**payload["network_config"]))
             network.load_state_dict(payload["state_dict"])
         except (OSError, KeyError, TypeError, RuntimeError, pickle.UnpicklingError) as exc:
-            raise ValueError(f"{path}: not a model written by anseg ({type(exc).__name__}: {exc})") from exc
+            # in our words: torch's own message advises an unsafe load
+            raise ValueError(f"{path}: not a model written by anseg, or a damaged one ({type(exc).__name__})") from exc
         return cls(
             network=network.to(device).eval(),
             config=SegmentConfig(**payload["segment_config"]),
@@ -288,6 +290,11 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     config = config or model.config
     mesh.validate()
     levels = build_levels(mesh, model, config, groups, device)
+    idle = sum(level.record.n_collapses == 0 for level in levels[:-1])
+    if idle:
+        warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "
+                      f"{idle} of them collapsed nothing (the coarsest level has {levels[-1].mesh.n_faces} faces)",
+                      collapse.CollapseWarning, stacklevel=2)
     probs = class_probabilities(model, levels, config, device)
     raw = probs.argmax(axis=1)
     labels = graph_cut(mesh, probs, weight=config.smooth_weight) if config.smooth_weight > 0 else raw

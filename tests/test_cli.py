@@ -48,6 +48,26 @@ def test_bad_mesh_gives_message_not_traceback(tmp_path, content, message):
     assert message in result.stderr and "Traceback" not in result.stderr
 
 
+def test_damaged_model_file_is_one_line_of_our_own(tmp_path):
+    mesh_path = tmp_path / "sphere.ply"
+    save_mesh(mesh_path, grid_mesh(4, closed=True))
+    (tmp_path / "bad.pt").write_bytes(b"garbage")
+    result = run_cli("segment", tmp_path / "bad.pt", mesh_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
+    assert "not a model written by anseg" in result.stderr and "weights_only" not in result.stderr
+
+
+def test_features_repair_handles_repeated_faces(tmp_path):
+    sphere = grid_mesh(4, closed=True)
+    path = tmp_path / "twice.off"
+    save_mesh(path, type(sphere)(sphere.vertices, np.vstack([sphere.faces, sphere.faces[:3]])))
+    refused = run_cli("features", path, "-o", tmp_path / "x.npy")
+    assert refused.returncode == 2 and "3 faces repeat" in refused.stderr and "--repair" in refused.stderr
+    result = run_cli("features", path, "-o", tmp_path / "x.npy", "--groups", "edge", "--repair")
+    assert result.returncode == 0, result.stderr
+    assert np.load(tmp_path / "x.npy").shape[0] == sphere.n_faces
+
+
 def test_unknown_dataset_and_missing_model(tmp_path):
     result = run_cli("evaluate", tmp_path / "missing.pt", "--dataset", "psb")
     assert result.returncode == 2 and "no such model file" in result.stderr and "Traceback" not in result.stderr
@@ -74,3 +94,11 @@ def test_train_segment_evaluate(tmp_path):
     result = run_cli("evaluate", model, "--dataset", "synthetic", "--category", "vessel", "--json", tmp_path / "scores.json")
     assert result.returncode == 0, result.stderr
     assert "unit_area" in result.stdout and (tmp_path / "scores.json").is_file()
+    # a mesh too small for the model's cycles: segmented, with a one-line warning that says so
+    triangle = tmp_path / "triangle.off"
+    triangle.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    result = run_cli("segment", model, triangle, "-o", tmp_path / "tri.ply")
+    assert result.returncode == 0, result.stderr
+    assert "warning: 1 faces are too few for 1 cycles" in result.stderr and result.stderr.count("\n") == 1
+    result = run_cli("segment", model, triangle, "--smooth-weight", "-3")
+    assert result.returncode == 2 and "--smooth-weight: must be a number >= 0" in result.stderr
