@@ -173,9 +173,7 @@ def _evaluate(args) -> None:
 
 
 def _features(args) -> None:
-    from anseg import features, load_mesh
-
-    from anseg import repair
+    from anseg import features, load_mesh, repair
 
     mesh = load_mesh(args.mesh, validate=not args.repair)
     if args.repair:

@@ -52,9 +52,10 @@ import torch
 from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout, layout
+from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
+from anseg.graphcut import smooth as graph_cut
 from anseg.mesh import Mesh
 from anseg.model import AttentionSegmenter, ModelConfig
-from anseg.smooth import smooth as graph_cut
 
 MODES = ("nonuniform", "uniform", "none")
 COMBINE = ("coarsest", "all", "decay")
@@ -69,7 +70,8 @@ class SegmentConfig:
     default, as in the committed results), and so is ``priority`` (the
     paper's ``"score"`` order, or ``"weighted"`` decimation, whose weights
     :func:`collapse_weights` clips to ``density_range``); ``combine`` and
-    ``local_scale`` are read in the module docstring.
+    ``local_scale`` are read in the module docstring; ``smooth_weight`` and
+    ``concave_discount`` are the graph cut's (:mod:`anseg.graphcut`).
     """
 
     cycles: int = 4
@@ -79,6 +81,7 @@ class SegmentConfig:
     clusters: int = 8
     patch_size: int = 16
     smooth_weight: float = 1.0
+    concave_discount: float = DEFAULT_CONCAVE_DISCOUNT
     combine: str = "all"
     once_per_pass: bool = False
     local_scale: str = "unit_area"
@@ -93,6 +96,8 @@ class SegmentConfig:
             raise ValueError(f"combine must be one of {COMBINE}, got {self.combine!r}")
         if self.priority not in collapse.PRIORITIES:
             raise ValueError(f"priority must be one of {collapse.PRIORITIES}, got {self.priority!r}")
+        if not (self.smooth_weight >= 0 and self.concave_discount >= 0):
+            raise ValueError(f"smooth_weight and concave_discount must be >= 0, got {self.smooth_weight}, {self.concave_discount}")
         if not self.density_range >= 1.0:
             raise ValueError(f"density_range must be at least 1 (inf: no clip), got {self.density_range}")
         if self.local_scale not in LOCAL_SCALES:
@@ -297,5 +302,6 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
                       collapse.CollapseWarning, stacklevel=2)
     probs = class_probabilities(model, levels, config, device)
     raw = probs.argmax(axis=1)
-    labels = graph_cut(mesh, probs, weight=config.smooth_weight) if config.smooth_weight > 0 else raw
+    labels = (graph_cut(mesh, probs, weight=config.smooth_weight, concave_discount=config.concave_discount)
+              if config.smooth_weight > 0 else raw)
     return Segmentation(labels=labels, probabilities=probs, unsmoothed_labels=raw, levels=levels)

@@ -50,8 +50,14 @@ from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.metrics import pooled_accuracy
 from anseg.model import AttentionSegmenter, ModelConfig
-from anseg.pipeline import SegmentConfig, Segmenter, build_levels, input_groups, model_inputs, segment
-
+from anseg.pipeline import (
+    SegmentConfig,
+    Segmenter,
+    build_levels,
+    input_groups,
+    model_inputs,
+    segment,
+)
 
 SCHEDULES = ("constant", "cosine")
 
@@ -286,7 +292,8 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
 # Fields of SegmentConfig ("segment") and TrainConfig ("train") introduced after results were stored, with
 # the value the older results ran with: at that value a field stays out of the key.
 SETTINGS_ADDED_LATER = {
-    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf")},
+    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
+                "concave_discount": 3.0},
     "train": {"embed_norm": False, "schedule": "constant"},
 }
 

@@ -51,7 +51,7 @@ from anseg.train import Experiment, TrainConfig, environment, evaluate, fit
 
 DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane", "Bird", "Teddy")
 # SegmentConfig fields that change only how a trained model segments, not the training.
-INFERENCE_ONLY = ("smooth_weight", "combine")
+INFERENCE_ONLY = ("smooth_weight", "concave_discount", "combine")
 DEFAULT_OUT = Path("results", "validation")
 BOOTSTRAP_SAMPLES = 10_000
 

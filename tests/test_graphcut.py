@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from anseg.mesh import Mesh
-from anseg.smooth import energy, smooth
+from anseg.graphcut import energy, smooth
 from conftest import grid_mesh
 
 
