@@ -110,3 +110,20 @@ def test_collapse_weights_clip_the_density_range_around_the_median():
     assert (unclipped > 0).all() and unclipped[-1] == 50.0
     with pytest.raises(ValueError, match="density_range"):
         SegmentConfig(density_range=0.5)
+
+
+def test_combine_rules_weigh_the_levels_as_documented(model, shapes):
+    from anseg import collapse
+    from anseg.pipeline import class_probabilities, model_inputs
+
+    levels = build_levels(shapes[4].mesh, model, FAST)
+    per_level = []
+    with torch.no_grad():
+        for index, level in enumerate(levels):
+            probs = torch.softmax(model(**model_inputs(model, level, index, len(levels), "cpu")).logits, 1).double().numpy()
+            records = [lv.record for lv in levels[:index]]
+            per_level.append(collapse.upsample_through(records, probs) if records else probs)
+    expected = {"coarsest": per_level[-1], "all": np.mean(per_level, axis=0),
+                "decay": np.average(per_level, axis=0, weights=[1.0, 0.5, 0.25])}
+    for rule, want in expected.items():
+        np.testing.assert_allclose(class_probabilities(model, levels, replace(FAST, combine=rule)), want, rtol=1e-5, atol=1e-7)

@@ -121,3 +121,17 @@ def test_learning_rate_schedules():
     assert 0 < learning_rate(cosine, 9, 10) < 0.0003
     with pytest.raises(ValueError, match="schedule"):
         TrainConfig(schedule="step")
+
+
+def test_attention_loss_is_class_balanced_and_silent_without_a_boundary():
+    from anseg.train import _attention_loss
+
+    band = torch.tensor([1.0, 0.0, 0.0, 0.0])
+    high_at_band = _attention_loss(torch.tensor([3.0, 0.5, 0.5, 0.5]), band)
+    low_at_band = _attention_loss(torch.tensor([0.5, 3.0, 3.0, 3.0]), band)
+    assert 0 < high_at_band < low_at_band
+    attention = torch.tensor([1.0, 1.0, 1.0, 1.0], requires_grad=True)
+    _attention_loss(attention, band).backward()
+    assert attention.grad[0] < 0 < attention.grad[1]  # pushes the band up, the rest down
+    for flat in (torch.zeros(4), torch.ones(4)):
+        assert _attention_loss(torch.ones(4), flat) == 0
