@@ -39,6 +39,7 @@ import os
 import platform
 import random
 import time
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -218,14 +219,17 @@ def fit(
     optimizer = torch.optim.Adam(network.parameters(), lr=train.lr)
     total_steps = train.epochs * len(train_set)
     settings = {"segment": asdict(config), "train": asdict(train), "meshes": [m.name for m in train_set]}
-    start = _resume(checkpoint, settings, network, optimizer) if checkpoint else 0
+    order = np.random.default_rng(train.seed)  # the order of the meshes in each epoch
+    state = _TrainingState(network, optimizer, order)
+    start = state.resume(checkpoint, settings) if checkpoint else 0
 
     bar = tqdm(range(start, train.epochs), desc="train", disable=not progress, initial=start, total=train.epochs)
     examples: list[_Example] = []
-    order = np.random.default_rng(train.seed)
     for epoch in bar:
         if not examples or epoch % train.recollapse_every == 0:
-            examples = [_examples(model, m.mesh, m.labels, g, train, device) for m, g in zip(train_set, groups)]
+            # a run resumed between rebuilds rebuilds with the weights of the last rebuild, as the run it continues did
+            with state.weights_of_last_rebuild(epoch % train.recollapse_every == 0):
+                examples = [_examples(model, m.mesh, m.labels, g, train, device) for m, g in zip(train_set, groups)]
         network.train()
         losses, accuracies = [], []
         for step, i in enumerate(order.permutation(len(examples)), start=epoch * len(examples)):
@@ -239,29 +243,56 @@ def fit(
             accuracies.append(accuracy)
         bar.set_postfix(loss=f"{np.mean(losses):.3f}", acc=f"{np.mean(accuracies):.3f}")
         if checkpoint:
-            _save_checkpoint(checkpoint, settings, network, optimizer, epoch + 1)
+            state.save(checkpoint, settings, epoch + 1)
     network.eval()
     return model
 
 
-def _save_checkpoint(path, settings, network, optimizer, epoch: int) -> None:
-    payload = {"settings": json.dumps(settings, sort_keys=True), "network": network.state_dict(),
-               "optimizer": optimizer.state_dict(), "epoch": epoch, "torch_rng": torch.get_rng_state()}
-    atomic_write(path, lambda tmp: torch.save(payload, tmp))
+class _TrainingState:
+    """What a checkpoint holds, so that a resumed run continues exactly as the uninterrupted one would.
 
+    Besides the weights, the optimiser and torch's random state: the
+    generator that orders the meshes, and the weights the current hierarchy
+    was built with (it is rebuilt only every ``recollapse_every`` epochs).
+    """
 
-def _resume(path, settings, network, optimizer) -> int:
-    """The epoch to start from: that of a checkpoint with the same settings, else 0."""
-    path = Path(path)
-    if not path.is_file():
-        return 0
-    payload = torch.load(path, map_location="cpu", weights_only=True)
-    if payload.get("settings") != json.dumps(settings, sort_keys=True):
-        return 0
-    network.load_state_dict(payload["network"])
-    optimizer.load_state_dict(payload["optimizer"])
-    torch.set_rng_state(payload["torch_rng"])
-    return int(payload["epoch"])
+    def __init__(self, network, optimizer, order: np.random.Generator):
+        self.network, self.optimizer, self.order = network, optimizer, order
+        self.rebuilt_with = None  # state dict of the last rebuild; None: the current weights
+
+    @contextmanager
+    def weights_of_last_rebuild(self, rebuilding_now: bool):
+        if rebuilding_now or self.rebuilt_with is None:
+            self.rebuilt_with = {k: v.detach().clone() for k, v in self.network.state_dict().items()}
+            yield
+            return
+        current = {k: v.detach().clone() for k, v in self.network.state_dict().items()}
+        self.network.load_state_dict(self.rebuilt_with)
+        try:
+            yield
+        finally:
+            self.network.load_state_dict(current)
+
+    def save(self, path, settings: dict, epoch: int) -> None:
+        payload = {"settings": json.dumps(settings, sort_keys=True), "network": self.network.state_dict(),
+                   "optimizer": self.optimizer.state_dict(), "epoch": epoch, "torch_rng": torch.get_rng_state(),
+                   "order_rng": json.dumps(self.order.bit_generator.state), "rebuilt_with": self.rebuilt_with}
+        atomic_write(path, lambda tmp: torch.save(payload, tmp))
+
+    def resume(self, path, settings: dict) -> int:
+        """The epoch to start from: that of a checkpoint with the same settings, else 0."""
+        path = Path(path)
+        if not path.is_file():
+            return 0
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+        if payload.get("settings") != json.dumps(settings, sort_keys=True) or "order_rng" not in payload:
+            return 0
+        self.network.load_state_dict(payload["network"])
+        self.optimizer.load_state_dict(payload["optimizer"])
+        torch.set_rng_state(payload["torch_rng"])
+        self.order.bit_generator.state = json.loads(payload["order_rng"])
+        self.rebuilt_with = payload["rebuilt_with"]
+        return int(payload["epoch"])
 
 
 def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, progress: bool = True) -> dict:

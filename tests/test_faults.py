@@ -1,0 +1,58 @@
+"""What must survive a crash: a training run killed mid-epoch resumes to the same model."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+import torch
+
+from anseg import datasets
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig, fit
+
+CONFIG = "SegmentConfig(cycles=2, clusters=4)", "TrainConfig(epochs=6, width=16, recollapse_every=4)"
+TRAINING = textwrap.dedent(f'''
+    import sys, torch
+    torch.set_num_threads(1)
+    from anseg import datasets
+    from anseg.pipeline import SegmentConfig
+    from anseg.train import TrainConfig, fit
+    meshes = datasets.load("synthetic", "figure", "train", n_shapes=8, progress=False)
+    fit(meshes, meshes[0].label_names, {CONFIG[0]}, {CONFIG[1]}, checkpoint=sys.argv[1], progress=False)
+''')
+
+
+def checkpoint_epoch(path) -> int:
+    try:
+        return torch.load(path, weights_only=True)["epoch"]
+    except Exception:  # not written yet, or being renamed into place
+        return 0
+
+
+@pytest.mark.slow
+def test_a_run_killed_mid_epoch_resumes_to_the_same_model(tmp_path):
+    torch.set_num_threads(1)
+    checkpoint = tmp_path / "run.ckpt"
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    child = subprocess.Popen([sys.executable, "-c", TRAINING, str(checkpoint)], env=env)
+    try:
+        deadline = time.time() + 300
+        while checkpoint_epoch(checkpoint) < 1 and time.time() < deadline and child.poll() is None:
+            time.sleep(0.02)
+        child.send_signal(signal.SIGKILL)  # mid-epoch 2, between two rebuilds of the hierarchy
+    finally:
+        child.wait()
+    killed_at = checkpoint_epoch(checkpoint)
+    assert 1 <= killed_at < 6, "the run was not killed in the middle"
+    meshes = datasets.load("synthetic", "figure", "train", n_shapes=8, progress=False)
+    segment, train = eval(CONFIG[0]), eval(CONFIG[1])  # noqa: S307  the same literal the child ran
+    resumed = fit(meshes, meshes[0].label_names, segment, train, checkpoint=checkpoint, progress=False)
+    straight = fit(meshes, meshes[0].label_names, segment, train, progress=False)
+    for a, b in zip(straight.network.state_dict().values(), resumed.network.state_dict().values()):
+        assert torch.equal(a, b)
