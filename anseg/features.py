@@ -729,7 +729,8 @@ def _compute_arrays(vertices, faces, groups, cache, settings) -> np.ndarray:
 # -------------------------------------------------------------------- cache
 def _cache_path(mesh: Mesh, groups: tuple[str, ...], settings: FeatureSettings) -> Path:
     digest = hashlib.sha256()
-    digest.update(f"anseg-features v{FEATURES_VERSION}|{groups}|{sorted(asdict(settings).items())}|".encode())
+    # "sha256": the entry ends with its checksum (entries written before it are not looked for)
+    digest.update(f"anseg-features v{FEATURES_VERSION}|sha256|{groups}|{sorted(asdict(settings).items())}|".encode())
     digest.update(f"{mesh.vertices.shape}{mesh.faces.shape}".encode())
     digest.update(mesh.vertices.tobytes())
     digest.update(mesh.faces.tobytes())
@@ -737,8 +738,10 @@ def _cache_path(mesh: Mesh, groups: tuple[str, ...], settings: FeatureSettings) 
 
 
 def _write_array(path: Path, array: np.ndarray) -> None:
+    """The array as .npy, then the sha256 of its data: flipped bytes are caught on reading, not trained on."""
     with open(path, "wb") as handle:  # np.save(path) would append ".npy" to the temporary name
         np.save(handle, array, allow_pickle=False)
+        handle.write(hashlib.sha256(np.ascontiguousarray(array).tobytes()).digest())
 
 
 def _read_cached(path: Path, shape: tuple[int, int]) -> np.ndarray | None:
@@ -746,9 +749,13 @@ def _read_cached(path: Path, shape: tuple[int, int]) -> np.ndarray | None:
     if not path.is_file():
         return None
     try:
-        array = np.load(path, allow_pickle=False)
+        with open(path, "rb") as handle:
+            array = np.lib.format.read_array(handle, allow_pickle=False)
+            checksum = handle.read()
         problem = None
-        if array.shape != shape:
+        if checksum != hashlib.sha256(array.tobytes()).digest():
+            problem = "checksum mismatch (damaged or truncated)"
+        elif array.shape != shape:
             problem = f"shape {array.shape}, expected {shape}"
         elif array.dtype != np.float32:
             problem = f"dtype {array.dtype}, expected float32"

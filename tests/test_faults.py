@@ -1,4 +1,4 @@
-"""What must survive a crash: a training run killed mid-epoch resumes to the same model."""
+"""What must survive a crash: a training run killed mid-epoch resumes to the same model; concurrent cache writers."""
 
 from __future__ import annotations
 
@@ -9,10 +9,11 @@ import sys
 import textwrap
 import time
 
+import numpy as np
 import pytest
 import torch
 
-from anseg import datasets
+from anseg import datasets, features
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig, fit
 
@@ -56,3 +57,23 @@ def test_a_run_killed_mid_epoch_resumes_to_the_same_model(tmp_path):
     straight = fit(meshes, meshes[0].label_names, segment, train, progress=False)
     for a, b in zip(straight.network.state_dict().values(), resumed.network.state_dict().values()):
         assert torch.equal(a, b)
+
+
+@pytest.mark.slow
+def test_two_processes_filling_the_same_cache_entry_both_succeed(tmp_path):
+    script = textwrap.dedent('''
+        import numpy as np, trimesh
+        from anseg import features
+        from anseg.mesh import Mesh
+        sphere = trimesh.creation.icosphere(subdivisions=4)
+        x = features.compute(Mesh(sphere.vertices * [2.0, 1.0, 1.0], sphere.faces))
+        print(float(np.abs(x).sum()))
+    ''')
+    env = {**os.environ, "ANSEG_CACHE": str(tmp_path), "OMP_NUM_THREADS": "1"}
+    runs = [subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE, text=True) for _ in range(2)]
+    outputs = [run.communicate(timeout=300)[0] for run in runs]
+    assert [run.returncode for run in runs] == [0, 0]
+    assert outputs[0] == outputs[1]
+    entries = list((tmp_path / "features").iterdir())
+    assert len(entries) == 1 and entries[0].suffix == ".npy"  # one entry, no temporary file left behind
+    assert features._read_cached(entries[0], np.load(entries[0]).shape) is not None  # its checksum holds

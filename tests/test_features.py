@@ -235,14 +235,22 @@ def test_second_call_reads_the_cache(cache_root, monkeypatch):
         features.compute(mesh, cache=False, **FAST)
 
 
+def _flip_a_bit(data: bytes) -> bytes:
+    middle = len(data) // 2  # inside the array's data, past the .npy header
+    return data[:middle] + bytes([data[middle] ^ 1]) + data[middle + 1:]
+
+
 @pytest.mark.parametrize(
     "damage",
     [
         lambda path: path.write_bytes(path.read_bytes()[: len(path.read_bytes()) // 2]),
+        lambda path: path.write_bytes(path.read_bytes()[:-1]),
         lambda path: np.save(path, np.zeros((3, 3), dtype=np.float32)),
-        lambda path: np.save(path, np.full(np.load(path).shape, np.nan, dtype=np.float32)),
+        lambda path: features._write_array(path, np.full(np.load(path).shape, np.nan, dtype=np.float32)),
+        lambda path: features._write_array(path, np.zeros((3, 3), dtype=np.float32)),
+        lambda path: path.write_bytes(_flip_a_bit(path.read_bytes())),
     ],
-    ids=["truncated", "wrong-shape", "non-finite"],
+    ids=["truncated", "checksum-cut", "no-checksum", "non-finite", "wrong-shape", "flipped-bit"],
 )
 def test_a_damaged_cache_entry_is_detected_and_recomputed(cache_root, damage):
     mesh = blob()
