@@ -17,7 +17,7 @@ from anseg import datasets, features
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig, fit
 
-CONFIG = "SegmentConfig(cycles=2, clusters=4)", "TrainConfig(epochs=6, width=16, recollapse_every=4)"
+SEGMENT, TRAIN = {"cycles": 2, "clusters": 4}, {"epochs": 6, "width": 16, "recollapse_every": 4}
 TRAINING = textwrap.dedent(f'''
     import sys, torch
     torch.set_num_threads(1)
@@ -25,7 +25,8 @@ TRAINING = textwrap.dedent(f'''
     from anseg.pipeline import SegmentConfig
     from anseg.train import TrainConfig, fit
     meshes = datasets.load("synthetic", "figure", "train", n_shapes=8, progress=False)
-    fit(meshes, meshes[0].label_names, {CONFIG[0]}, {CONFIG[1]}, checkpoint=sys.argv[1], progress=False)
+    fit(meshes, meshes[0].label_names, SegmentConfig(**{SEGMENT!r}), TrainConfig(**{TRAIN!r}), checkpoint=sys.argv[1],
+        progress=False)
 ''')
 
 
@@ -52,7 +53,7 @@ def test_a_run_killed_mid_epoch_resumes_to_the_same_model(tmp_path):
     killed_at = checkpoint_epoch(checkpoint)
     assert 1 <= killed_at < 6, "the run was not killed in the middle"
     meshes = datasets.load("synthetic", "figure", "train", n_shapes=8, progress=False)
-    segment, train = eval(CONFIG[0]), eval(CONFIG[1])  # noqa: S307  the same literal the child ran
+    segment, train = SegmentConfig(**SEGMENT), TrainConfig(**TRAIN)
     resumed = fit(meshes, meshes[0].label_names, segment, train, checkpoint=checkpoint, progress=False)
     straight = fit(meshes, meshes[0].label_names, segment, train, progress=False)
     for a, b in zip(straight.network.state_dict().values(), resumed.network.state_dict().values()):
