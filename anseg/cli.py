@@ -131,6 +131,7 @@ def _print_scores(scores: dict) -> None:
 
 def _segment(args) -> None:
     from anseg import load_mesh, repair, save_mesh
+    from anseg.cache import atomic_write
     from anseg.pipeline import segment
     from anseg.viz import label_colors
 
@@ -147,12 +148,13 @@ def _segment(args) -> None:
     result = segment(mesh, model, config, device=next(model.network.parameters()).device)
     output = args.output or args.mesh.with_name(f"{args.mesh.stem}_labels.ply")
     label_path = args.labels or output.with_suffix(".txt")
-    save_mesh(output, mesh, face_colors=label_colors(result.labels, model.n_classes))
     labels = result.labels
     if face_map is not None:  # back to the input faces; dropped faces get -1
         labels = np.full(n_input_faces, -1)
         labels[face_map] = result.labels
-    np.savetxt(label_path, labels, fmt="%d")
+    # each file is complete or absent, even when interrupted
+    atomic_write(output, lambda tmp: save_mesh(tmp, mesh, face_colors=label_colors(result.labels, model.n_classes)))
+    atomic_write(label_path, lambda tmp: np.savetxt(tmp, labels, fmt="%d"))
     counts = np.bincount(result.labels, minlength=model.n_classes)
     print(f"{mesh.n_faces} faces -> {output} and {label_path}")
     for name, count in zip(model.label_names, counts):

@@ -76,7 +76,7 @@ def test_unknown_dataset_and_missing_model(tmp_path):
 
 
 @pytest.mark.slow
-def test_train_segment_evaluate(tmp_path):
+def test_train_segment_evaluate(tmp_path, monkeypatch):
     model = tmp_path / "vessel.pt"
     result = run_cli("train", "--dataset", "synthetic", "--category", "vessel", "--epochs", "1", "--cycles", "1", "-o", model, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
@@ -102,3 +102,11 @@ def test_train_segment_evaluate(tmp_path):
     assert "warning: 1 faces are too few for 1 cycles" in result.stderr and result.stderr.count("\n") == 1
     result = run_cli("segment", model, triangle, "--smooth-weight", "-3")
     assert result.returncode == 2 and "--smooth-weight: must be a number >= 0" in result.stderr
+    # interrupted while writing the label file: no partial file under the final name, no temporary left
+    def interrupted(path, *args, **kwargs):
+        open(path, "w").write("0\n")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savetxt", interrupted)
+    assert main(["segment", str(model), str(mesh_path), "-o", str(tmp_path / "cut.ply")]) == 130
+    assert not (tmp_path / "cut.txt").exists() and not list(tmp_path.glob(".cut*"))
