@@ -275,6 +275,7 @@ def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
         raise MeshError(f"{path}: no such file")
     if path.suffix.lower() not in SUPPORTED_SUFFIXES:
         raise MeshError(f"{path}: unsupported format {path.suffix!r} (expected one of {', '.join(SUPPORTED_SUFFIXES)})")
+    _check_declared_counts(path)
     import trimesh
 
     try:
@@ -290,6 +291,39 @@ def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
         except MeshError as exc:
             raise MeshError(f"{path}: {exc}") from None
     return mesh
+
+
+# the fewest bytes a vertex or face can take in a file: "0 0 0\n" and "3 0 1 2\n" as text, 3 x 4 bytes in binary PLY
+_MIN_TEXT_BYTES = {"vertex": 6, "face": 8}
+_MIN_BINARY_BYTES = {"vertex": 12, "face": 13}
+
+
+def _check_declared_counts(path: Path) -> None:
+    """Refuse an OFF or PLY header that declares more elements than the file can hold, before anything is allocated."""
+    size = path.stat().st_size
+    with open(path, "rb") as handle:
+        head = handle.read(4096).decode("latin-1")
+    lines = [line.split("#")[0].strip() for line in head.splitlines()]
+    counts, minimum = {}, _MIN_TEXT_BYTES
+    if path.suffix.lower() == ".off":
+        words = " ".join(line for line in lines if line).split()
+        if words and words[0].upper().endswith("OFF"):
+            words = words[1:]
+        if len(words) >= 2 and all(w.isdigit() for w in words[:2]):
+            counts = {"vertex": int(words[0]), "face": int(words[1])}
+    elif path.suffix.lower() == ".ply":
+        for line in lines:
+            parts = line.split()
+            if len(parts) == 3 and parts[0] == "element" and parts[1] in minimum and parts[2].isdigit():
+                counts[parts[1]] = int(parts[2])
+            elif len(parts) >= 2 and parts[0] == "format" and parts[1].startswith("binary"):
+                minimum = _MIN_BINARY_BYTES
+            elif line == "end_header":
+                break
+    needed = sum(minimum[kind] * n for kind, n in counts.items())
+    if needed > size:
+        declared = ", ".join(f"{n} {kind} elements" for kind, n in counts.items())
+        raise MeshError(f"{path}: the header declares {declared}, more than its {size} bytes can hold (truncated or damaged)")
 
 
 def save_mesh(path: str | os.PathLike, mesh: Mesh, face_colors: np.ndarray | None = None) -> None:
