@@ -73,7 +73,9 @@ def _parser() -> argparse.ArgumentParser:
     segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
     segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
     segment.add_argument("--smooth-weight", type=_non_negative, default=None, help="graph-cut weight (default: the model's; 0 turns smoothing off)")
-    segment.add_argument("--repair", action="store_true", help="merge duplicate vertices and drop degenerate faces first; labels follow the input faces")
+    segment.add_argument("--repair", action="store_true",
+                         help="merge duplicate vertices, drop degenerate and repeated faces and cut non-manifold edges and "
+                              "vertices apart first; labels are written per input face")
 
     evaluate = commands.add_parser("evaluate", help="score a trained model on a split's test meshes",
                                    description="Eq. 5 on the test meshes: unit-area (primary), raw-area and face readings.")
@@ -132,12 +134,13 @@ def _print_scores(scores: dict) -> None:
 def _segment(args) -> None:
     from anseg import load_mesh, repair, save_mesh
     from anseg.cache import atomic_write
+    from anseg.mesh import labels_for_input_faces
     from anseg.pipeline import segment
     from anseg.viz import label_colors
 
     model = _load_model(args.model)
-    mesh = load_mesh(args.mesh, validate=not args.repair)
-    n_input_faces, face_map = mesh.n_faces, None
+    mesh = input_mesh = load_mesh(args.mesh, validate=not args.repair)
+    face_map = None
     if args.repair:
         mesh, face_map = repair(mesh)
     config = model.config
@@ -149,9 +152,8 @@ def _segment(args) -> None:
     output = args.output or args.mesh.with_name(f"{args.mesh.stem}_labels.ply")
     label_path = args.labels or output.with_suffix(".txt")
     labels = result.labels
-    if face_map is not None:  # back to the input faces; dropped faces get -1
-        labels = np.full(n_input_faces, -1)
-        labels[face_map] = result.labels
+    if face_map is not None:  # back to the input faces, dropped ones included
+        labels = labels_for_input_faces(result.labels, face_map, input_mesh)
     # each file is complete or absent, even when interrupted
     atomic_write(output, lambda tmp: save_mesh(tmp, mesh, face_colors=label_colors(result.labels, model.n_classes)))
     atomic_write(label_path, lambda tmp: np.savetxt(tmp, labels, fmt="%d"))

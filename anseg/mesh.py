@@ -110,6 +110,31 @@ class Mesh:
         return np.linalg.norm(self.vertices[e[:, 0]] - self.vertices[e[:, 1]], axis=1)
 
     @cached_property
+    def corner_fans(self) -> np.ndarray:
+        """(F, 3) the fan of every face corner, numbered 0..n-1.
+
+        The corners of one vertex are joined across the edges that exactly
+        two faces share. A manifold vertex has one fan; where sheets of faces
+        meet only at a vertex, or only along an edge of more than two faces,
+        each sheet has a fan of its own.
+        """
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        edge_of_corner = self.face_edges.ravel()  # corner 3f+k starts local edge k of face f
+        shared = np.flatnonzero(self.edge_face_counts[edge_of_corner] == 2)
+        paired = shared[np.argsort(edge_of_corner[shared], kind="stable")]  # each edge's two half-edges side by side
+        a, b = paired[0::2], paired[1::2]
+        a_end, b_end = 3 * (a // 3) + (a % 3 + 1) % 3, 3 * (b // 3) + (b % 3 + 1) % 3  # corners at the other end
+        vertex = self.faces.ravel()
+        agree = vertex[a] != vertex[b]  # consistently oriented faces run the shared edge in opposite directions
+        left = np.concatenate([a, a_end])
+        right = np.concatenate([np.where(agree, b_end, b), np.where(agree, b, b_end)])
+        n = 3 * self.n_faces
+        graph = coo_matrix((np.ones(len(left)), (left, right)), shape=(n, n))
+        return connected_components(graph, directed=False)[1].reshape(-1, 3)
+
+    @cached_property
     def edge_face_counts(self) -> np.ndarray:
         """(E,) number of faces on each edge: 1 boundary, 2 interior, >2 non-manifold."""
         return np.bincount(self.face_edges.ravel(), minlength=len(self.edges))
@@ -199,7 +224,8 @@ class Mesh:
         """Raise MeshError unless the mesh is usable; return self for chaining.
 
         Checks, in order: not empty, finite coordinates, face indices in
-        range, no zero-area faces, no repeated faces, no non-manifold edges.
+        range, no zero-area faces, no repeated faces, no non-manifold edges,
+        no non-manifold vertices.
         """
         if self.n_faces == 0 or self.n_vertices == 0:
             raise MeshError("mesh is empty (no faces or no vertices)")
@@ -223,7 +249,12 @@ class Mesh:
                             "anseg.repair(mesh) (--repair on the command line) drops them and keeps a map to the input faces")
         nonmanifold = int((self.edge_face_counts > 2).sum())
         if nonmanifold:
-            raise MeshError(f"{nonmanifold} non-manifold edges (shared by more than two faces); anseg needs a manifold mesh")
+            raise MeshError(f"{nonmanifold} non-manifold edges (shared by more than two faces); anseg.repair(mesh) "
+                            "(--repair on the command line) cuts the mesh apart there and keeps a map to the input faces")
+        pinched = self.corner_fans.max() + 1 - len(np.unique(self.faces))
+        if pinched:
+            raise MeshError(f"{pinched} non-manifold vertices (where sheets of faces meet at a single vertex); "
+                            "anseg.repair(mesh) (--repair on the command line) cuts the sheets apart")
         return self
 
 
@@ -233,14 +264,18 @@ def _area_tolerance(mesh: Mesh) -> float:
 
 
 def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
-    """Merge duplicate vertices and drop degenerate and duplicate faces.
+    """Merge duplicate vertices, drop degenerate and repeated faces, and cut non-manifold edges and vertices apart.
 
     Returns the repaired mesh and ``face_map``, the input index of every
     repaired face (so that ``labels[face_map]`` carries per-face input labels
-    over). Vertices with identical coordinates are merged; faces that then
-    repeat a vertex, have zero area or repeat another face's vertex set are
-    dropped (the first copy is kept); unused vertices are removed. Non-finite
-    coordinates, bad indices and non-manifold edges are not repaired.
+    over, and :func:`labels_for_input_faces` carries labels back). Vertices
+    with identical coordinates are merged; faces that then repeat a vertex,
+    have zero area or repeat another face's vertex set are dropped (the first
+    copy is kept); unused vertices are removed. Then every sheet of faces
+    around a non-manifold edge or vertex gets its own copies of the vertices
+    there (:attr:`Mesh.corner_fans`), so that the result is manifold and the
+    faces keep their order. Non-finite coordinates and bad indices are not
+    repaired.
     """
     if mesh.n_faces == 0:
         raise MeshError("mesh is empty (no faces)")
@@ -249,8 +284,10 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     if mesh.faces.min() < 0 or mesh.faces.max() >= mesh.n_vertices:
         raise MeshError("cannot repair faces that index missing vertices")
     _, first, inverse = np.unique(mesh.vertices, axis=0, return_index=True, return_inverse=True)
-    faces = inverse.reshape(-1)[mesh.faces]
-    vertices = mesh.vertices[first]
+    rank = np.empty_like(first)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))  # merged vertices keep the input's order
+    faces = rank[inverse.reshape(-1)][mesh.faces]
+    vertices = mesh.vertices[np.sort(first)]
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
     keep &= Mesh(vertices, faces).face_areas > _area_tolerance(mesh)
     _, unique_first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
@@ -259,8 +296,42 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     face_map = np.flatnonzero(keep & not_duplicate)
     if len(face_map) == 0:
         raise MeshError("no faces left after repair")
-    used, faces = np.unique(faces[face_map], return_inverse=True)
-    return Mesh(vertices[used], faces.reshape(-1, 3)), face_map
+    used, faces = np.unique(faces[face_map], return_inverse=True)  # sorted: the order stays
+    kept = Mesh(vertices[used], faces.reshape(-1, 3))
+    # one vertex per fan: a vertex's first fan keeps its index, the others are copies appended at the end
+    fans, corner_vertex = kept.corner_fans.ravel(), kept.faces.ravel()
+    first_corner = np.full(kept.n_vertices, len(fans))
+    np.minimum.at(first_corner, corner_vertex, np.arange(len(fans)))
+    index_of_fan = np.full(fans.max() + 1, -1)
+    index_of_fan[fans[first_corner]] = np.arange(kept.n_vertices)
+    extra = np.flatnonzero(index_of_fan < 0)
+    index_of_fan[extra] = kept.n_vertices + np.arange(len(extra))
+    vertex_of_fan = np.empty_like(index_of_fan)
+    vertex_of_fan[fans] = corner_vertex
+    repaired = Mesh(np.vstack([kept.vertices, kept.vertices[vertex_of_fan[extra]]]), index_of_fan[fans].reshape(-1, 3))
+    if (repaired.edge_face_counts > 2).any():
+        raise MeshError("cutting at non-manifold edges left some edge with more than two faces")
+    return repaired, face_map
+
+
+def labels_for_input_faces(labels, face_map, input_mesh: Mesh) -> np.ndarray:
+    """Per-face labels of a repaired mesh carried back to the faces of ``input_mesh`` (the one given to :func:`repair`).
+
+    A face that repair dropped takes the label of the kept face nearest to
+    its centroid: a repeated face its twin's (the same centroid), a
+    degenerate one a neighbour's. No face is left without a label.
+    """
+    from scipy.spatial import cKDTree
+
+    labels, face_map = np.asarray(labels), np.asarray(face_map)
+    out = np.empty(input_mesh.n_faces, dtype=labels.dtype)
+    out[face_map] = labels
+    dropped = np.setdiff1d(np.arange(input_mesh.n_faces), face_map)
+    if len(dropped):
+        centroids = input_mesh.vertices[input_mesh.faces].mean(axis=1)
+        _, nearest = cKDTree(centroids[face_map]).query(centroids[dropped])
+        out[dropped] = labels[nearest]
+    return out
 
 
 def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:

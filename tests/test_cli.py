@@ -94,6 +94,19 @@ def test_train_segment_evaluate(tmp_path, monkeypatch):
     result = run_cli("evaluate", model, "--dataset", "synthetic", "--category", "vessel", "--json", tmp_path / "scores.json")
     assert result.returncode == 0, result.stderr
     assert "unit_area" in result.stdout and (tmp_path / "scores.json").is_file()
+    # a non-manifold mesh (a fin glued along an edge and a repeated face): refused, then segmented with --repair,
+    # one label for every input face
+    mesh = shape.mesh
+    u, w = mesh.edges[0]
+    fin = np.vstack([mesh.vertices, (mesh.vertices[u] + mesh.vertices[w]) / 2 + 0.1 * mesh.face_normals[0]])
+    glued = type(mesh)(fin, np.vstack([mesh.faces, [[u, w, mesh.n_vertices]], mesh.faces[:1]]))
+    save_mesh(tmp_path / "fin.off", glued)
+    refused = run_cli("segment", model, tmp_path / "fin.off")
+    assert refused.returncode == 2 and "--repair" in refused.stderr
+    result = run_cli("segment", model, tmp_path / "fin.off", "--repair", "-o", tmp_path / "fin.ply")
+    assert result.returncode == 0, result.stderr
+    labels = np.loadtxt(tmp_path / "fin.txt", dtype=int)
+    assert labels.shape == (glued.n_faces,) and labels.min() >= 0
     # a mesh too small for the model's cycles: segmented, with a one-line warning that says so
     triangle = tmp_path / "triangle.off"
     triangle.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")

@@ -139,3 +139,87 @@ def test_repair_refuses_what_it_cannot_fix():
         repair(Mesh(TETRA_V, [[0, 1, 9]]))
     with pytest.raises(MeshError, match="no faces left"):
         repair(Mesh(TETRA_V, [[0, 0, 1]]))
+
+
+def two_spheres_sharing_a_vertex() -> Mesh:
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    n = len(sphere.vertices)
+    a, b = np.argmax(sphere.vertices[:, 0]), np.argmin(sphere.vertices[:, 0])  # a of the left touches b of the right
+    right = sphere.faces + n
+    right[right == n + b] = a  # one shared vertex index
+    return Mesh(np.vstack([sphere.vertices, sphere.vertices + [2.0 * sphere.vertices[a, 0], 0, 0]]), np.vstack([sphere.faces, right]))
+
+
+def two_cones_touching_at_their_apex() -> Mesh:
+    ring = np.stack([np.cos(np.arange(6) * np.pi / 3), np.sin(np.arange(6) * np.pi / 3), np.zeros(6)], axis=1)
+    vertices = np.vstack([[0, 0, 0], ring + [0, 0, 1], [0, 0, 1], ring - [0, 0, 1], [0, 0, -1]])
+    faces = []
+    for base, centre in ((1, 7), (8, 14)):
+        for k in range(6):
+            i, j = base + k, base + (k + 1) % 6
+            faces += [[0, i, j], [centre, j, i]]
+    return Mesh(vertices, np.array(faces))
+
+
+def grid_with_a_fin(fins: int = 1) -> Mesh:
+    grid = grid_mesh(4)
+    u, w = grid.edges[grid.edge_face_counts == 2][0]  # an interior edge
+    vertices, faces = [grid.vertices], [grid.faces]
+    for k in range(fins):
+        tip = (grid.vertices[u] + grid.vertices[w]) / 2 + [0.3 * k, 0, 1.0]
+        vertices.append(tip[None])
+        faces.append(np.array([[u, w, grid.n_vertices + k]]))
+    return Mesh(np.vstack(vertices), np.vstack(faces))
+
+
+@pytest.mark.parametrize("make, message", [
+    (two_spheres_sharing_a_vertex, "1 non-manifold vertices"),
+    (two_cones_touching_at_their_apex, "1 non-manifold vertices"),
+    (lambda: grid_with_a_fin(1), "non-manifold edges"),
+    (lambda: grid_with_a_fin(2), "non-manifold edges"),
+])
+def test_repair_cuts_non_manifold_edges_and_vertices_apart(make, message):
+    mesh = make()
+    with pytest.raises(MeshError, match=message):
+        mesh.validate()
+    fixed, face_map = repair(mesh)
+    fixed.validate()
+    assert face_map.tolist() == list(range(mesh.n_faces))  # nothing dropped, the order kept
+    np.testing.assert_array_equal(fixed.vertices[fixed.faces], mesh.vertices[mesh.faces])  # the same triangles
+    assert fixed.n_vertices > len(np.unique(mesh.faces))  # vertices were copied where sheets meet
+
+
+def test_a_manifold_mesh_has_one_fan_per_vertex():
+    for mesh in (grid_mesh(5), grid_mesh(4, closed=True), Mesh(TETRA_V, TETRA_F)):
+        assert mesh.corner_fans.max() + 1 == mesh.n_vertices
+        assert (mesh.corner_fans.ravel() >= 0).all()
+    fixed, face_map = repair(grid_mesh(5))
+    assert fixed.n_vertices == grid_mesh(5).n_vertices and face_map.tolist() == list(range(fixed.n_faces))
+
+
+def test_labels_go_back_to_every_input_face():
+    from anseg.mesh import labels_for_input_faces
+
+    v = np.vstack([TETRA_V, TETRA_V[0]])
+    f = np.array([[4, 2, 1], [0, 1, 3], [0, 0, 2], [0, 3, 2], [1, 2, 3], [3, 1, 0]])
+    mesh = Mesh(v, f)
+    fixed, face_map = repair(mesh)
+    labels = labels_for_input_faces(np.array([10, 11, 13, 14]), face_map, mesh)
+    assert labels.tolist()[:2] == [10, 11] and labels[5] == 11  # the repeated face takes its twin's label
+    assert labels[2] in (10, 11, 13, 14) and labels[3] == 13 and labels[4] == 14
+
+
+@pytest.mark.realdata
+def test_a_psb_mesh_with_a_fin_is_repaired_face_for_face(psb_sample):
+    mesh = psb_sample["Teddy"][0].mesh
+    u, w = mesh.edges[mesh.edge_face_counts == 2][0]
+    tip = (mesh.vertices[u] + mesh.vertices[w]) / 2 + 0.05 * np.ptp(mesh.vertices, axis=0).max() * mesh.face_normals[0]
+    glued = Mesh(np.vstack([mesh.vertices, tip]), np.vstack([mesh.faces, [[u, w, mesh.n_vertices]]]))
+    with pytest.raises(MeshError, match="non-manifold edges"):
+        glued.validate()
+    fixed, face_map = repair(glued)
+    fixed.validate()
+    assert face_map.tolist() == list(range(glued.n_faces))
+    np.testing.assert_allclose(fixed.face_areas, glued.face_areas)
