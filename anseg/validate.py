@@ -256,7 +256,7 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
     out = Path(out)
     for name, table in (("accuracy", rows), ("paired", comparisons)):
         if table:
-            text = _csv_text(table)
+            text = csv_text(table)
             atomic_write(out / f"{study}_{name}.csv", lambda tmp, text=text: tmp.write_text(text))
     lines = [f"{'arm':<24} {'category':<12} {'mean':>7} {'std':>6} {'runs':>4}"]
     lines += [f"{r['arm']:<24} {r['category']:<12} {r['mean']:7.2f} {r['std']:6.2f} {r['runs']:4d}" for r in rows]
@@ -269,7 +269,8 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
     return "\n".join(lines)
 
 
-def _csv_text(rows: list[dict]) -> str:
+def csv_text(rows: list[dict]) -> str:
+    """Rows of dicts as CSV text (floats with 4 decimals), the header from the first row."""
     import io
 
     buffer = io.StringIO()

@@ -24,7 +24,6 @@ model's settings, e.g. another collapse priority), and for every level this prin
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import warnings
 from dataclasses import replace
@@ -37,6 +36,7 @@ from anseg import datasets
 from anseg.collapse import CollapseWarning, compose, pool_labels, rings_to_other_label
 from anseg.configs import parse_overrides
 from anseg.pipeline import Segmenter, build_levels
+from anseg.validate import csv_text
 
 GIANT_FACTOR = 8
 BAND_RINGS = 2
@@ -103,10 +103,7 @@ def main(argv=None) -> None:
         print(f"{r['arm']:<16} {r['category']:<10} {r['hierarchy']:<18} {r['level']:>3} {r['faces']:6.0f} {r['z99']:7.1f} "
               f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['auc']:5.2f}")
     if args.out:
-        with open(args.out, "w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=list(table[0]))
-            writer.writeheader()
-            writer.writerows(table)
+        args.out.write_text(csv_text(table))
 
 
 if __name__ == "__main__":
