@@ -72,6 +72,7 @@ def _parser() -> argparse.ArgumentParser:
     segment.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
     segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
     segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
+    segment.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
     segment.add_argument("--smooth-weight", type=_non_negative, default=None, help="graph-cut weight (default: the model's; 0 turns smoothing off)")
     segment.add_argument("--repair", action="store_true",
                          help="merge duplicate vertices, drop degenerate and repeated faces and cut non-manifold edges and "
@@ -87,6 +88,7 @@ def _parser() -> argparse.ArgumentParser:
     feats.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
     feats.add_argument("-o", "--output", required=True, type=Path, help=".npy file to write")
     feats.add_argument("--groups", default=",".join(segment_defaults.groups), help="comma-separated feature groups (default: %(default)s)")
+    feats.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
     feats.add_argument("--repair", action="store_true", help="repair the mesh first, as `segment --repair` does; rows follow the repaired faces")
 
     commands.add_parser("validate", help="compare settings by cross-validation on training meshes", add_help=False,
@@ -148,7 +150,7 @@ def _segment(args) -> None:
         from dataclasses import replace
 
         config = replace(config, smooth_weight=args.smooth_weight)
-    result = segment(mesh, model, config, device=next(model.network.parameters()).device)
+    result = segment(mesh, model, config, device=next(model.network.parameters()).device, progress=not args.quiet)
     output = args.output or args.mesh.with_name(f"{args.mesh.stem}_labels.ply")
     label_path = args.labels or output.with_suffix(".txt")
     labels = result.labels
@@ -182,7 +184,7 @@ def _features(args) -> None:
     mesh = load_mesh(args.mesh, validate=not args.repair)
     if args.repair:
         mesh, _ = repair(mesh)
-    x = features.compute(mesh, groups=[g.strip() for g in args.groups.split(",") if g.strip()])
+    x = features.compute(mesh, groups=[g.strip() for g in args.groups.split(",") if g.strip()], progress=not args.quiet)
     np.save(args.output, x)
     print(f"{x.shape[0]} faces x {x.shape[1]} features -> {args.output}")
 

@@ -83,6 +83,7 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
+from tqdm.auto import tqdm
 
 from anseg.cache import atomic_write, cache_dir
 from anseg.mesh import Mesh, MeshError
@@ -122,6 +123,7 @@ _RAYS_PER_CALL = 1 << 20  # bounds the memory of the ray arrays on big meshes
 _BVH_LEAF = 4  # triangles per leaf of the ray-casting tree
 DIRECT_SOLVE_MAX_VERTICES = 30_000  # the smooth group's diffusion: sparse LU up to here, conjugate gradients above
 DIFFUSION_RTOL = 1e-10  # conjugate gradients of the smooth group: relative residual
+PROGRESS_MIN_FACES = 100_000  # a single mesh shows a progress bar from this size (tens of seconds of work)
 POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces in all (about a second of work)
 
 
@@ -628,11 +630,14 @@ def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -
 
 
 # ------------------------------------------------------------------ public
-def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = False, **settings) -> dict[str, np.ndarray]:
+def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = False, progress: bool = False,
+                   **settings) -> dict[str, np.ndarray]:
     """Each requested group's (F, d) float32 block, by name, in the order asked.
 
     With ``cache=True`` the blocks are cut from :func:`compute`'s cached
     matrix; the default recomputes (what coarse, throw-away meshes want).
+    ``progress`` shows a bar, group by group, for a mesh of at least
+    :data:`PROGRESS_MIN_FACES` faces when stderr is a terminal.
     Raises MeshError for a mesh that fails ``validate()`` (or, should it
     happen, whose features come out non-finite) and ValueError for unknown
     groups or settings.
@@ -640,19 +645,23 @@ def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bo
     groups = _check_groups(groups)
     cfg = _settings(settings)
     if cache:
-        matrix = compute(mesh, groups, cache=True, **settings)
+        matrix = compute(mesh, groups, cache=True, progress=progress, **settings)
         widths = np.cumsum([len(_group_columns(g, cfg)) for g in groups])[:-1]
         return dict(zip(groups, np.split(matrix, widths, axis=1)))
     mesh.validate()
     geometry = _Geometry(mesh, cfg)
-    blocks = {g: np.ascontiguousarray(_GROUP_FUNCTIONS[g](geometry), dtype=np.float32) for g in groups}
+    # a bar, group by group, only where it is worth watching: a large mesh, and stderr a terminal (tqdm's None)
+    quiet = True if not progress or mesh.n_faces < PROGRESS_MIN_FACES else None
+    blocks = {g: np.ascontiguousarray(_GROUP_FUNCTIONS[g](geometry), dtype=np.float32)
+              for g in tqdm(groups, desc="features", unit="group", disable=quiet, leave=False)}
     bad = [g for g, block in blocks.items() if not np.isfinite(block).all()]
     if bad:
         raise MeshError(f"feature groups {bad} came out non-finite for {mesh!r}; please report the mesh")
     return blocks
 
 
-def compute(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = True, **settings) -> np.ndarray:
+def compute(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = True, progress: bool = False,
+            **settings) -> np.ndarray:
     """(F, D) float32 per-face features, the groups' columns side by side (:func:`feature_names`).
 
     Cached on disk under ``cache_dir("features")``, keyed by the mesh arrays,
@@ -669,7 +678,7 @@ def compute(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = Tr
         cached = _read_cached(path, (mesh.n_faces, len(feature_names(groups, **settings))))
         if cached is not None:
             return cached
-    matrix = np.concatenate(list(compute_groups(mesh, groups, **settings).values()), axis=1)
+    matrix = np.concatenate(list(compute_groups(mesh, groups, progress=progress, **settings).values()), axis=1)
     if path is not None:
         atomic_write(path, lambda tmp: _write_array(tmp, matrix))
     return matrix
@@ -692,8 +701,6 @@ def compute_many(
     The pool is :func:`anseg.parallel.run_parallel`'s, so a plain script
     needs no ``if __name__ == "__main__":`` guard.
     """
-    from tqdm.auto import tqdm
-
     meshes = list(meshes)
     groups = _check_groups(groups)
     cfg = _settings(settings)

@@ -239,13 +239,15 @@ def collapse_weights(attention: np.ndarray, density_range: float) -> np.ndarray:
     return np.clip(attention, max(low, 1e-6 * max(median, 1e-12)), high)
 
 
-def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: dict[str, np.ndarray] | None = None, device="cpu") -> list[Level]:
+def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: dict[str, np.ndarray] | None = None,
+                 device="cpu", progress: bool = False) -> list[Level]:
     """Run the N downsampling units; attention comes from ``model`` (no gradients).
 
-    ``groups`` are the level-0 features (computed, with the cache, when not given).
+    ``groups`` are the level-0 features (computed, with the cache, when not
+    given; ``progress`` shows their bar on a large mesh).
     """
     if groups is None:
-        groups = features.compute_groups(mesh, config.groups, cache=True)
+        groups = features.compute_groups(mesh, config.groups, cache=True, progress=progress)
     levels = []
     current, current_groups = mesh, groups
     for index in range(config.n_levels):
@@ -286,15 +288,17 @@ def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentCo
     return np.average(per_level, axis=0, weights=weights)
 
 
-def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, groups=None, device="cpu") -> Segmentation:
+def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, groups=None, device="cpu",
+            progress: bool = False) -> Segmentation:
     """Segment one mesh with a trained model: Algorithm 1, lines 1-9.
 
     ``config`` defaults to the model's own (the settings it was trained with);
     pass another to change, e.g., the smoothing weight or the mode.
+    ``progress`` shows the feature groups' bar on a large mesh.
     """
     config = config or model.config
     mesh.validate()
-    levels = build_levels(mesh, model, config, groups, device)
+    levels = build_levels(mesh, model, config, groups, device, progress)
     idle = sum(level.record.n_collapses == 0 for level in levels[:-1])
     if idle:
         warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "
