@@ -3,23 +3,62 @@
 ``run_parallel(calls, workers)`` runs ``function(*args)`` for each call and
 yields ``(index, result)`` as each finishes (an exception that a call raised
 comes back as the result, so that one failure does not lose the others).
-``workers=1`` runs the calls here, in order; more use a process pool.
+``workers=1`` runs the calls here, in order. More go to one of two backends:
 
-The pool is joblib's loky executor (joblib comes with scikit-learn): its
-workers start from a fresh interpreter, as with ``spawn`` (forking once
-torch, numba or OpenMP threads exist is unsafe), but they do not re-import
-the caller's ``__main__``, so a plain script without an ``if __name__ ==
-"__main__":`` guard works as well as a notebook. Every worker gets one
-thread for OpenMP, numba and torch: on a small machine several jobs with
-several threads each thrash.
+* ``"loky"`` (feature computation): joblib's loky executor (joblib comes
+  with scikit-learn). Its workers start from a fresh interpreter, as with
+  ``spawn`` (forking once torch, numba or OpenMP threads exist is unsafe),
+  but they do not re-import the caller's ``__main__``, so a plain script
+  without an ``if __name__ == "__main__":`` guard works as well as a
+  notebook.
+* ``"dask"`` (trainings: :func:`anseg.experiments.run_plan`, validation):
+  Dask distributed, on a ``LocalCluster`` of ``workers`` processes here, or
+  on the running cluster whose scheduler address is ``scheduler``, so the
+  same plan scales from this machine to a cluster without a changed line.
+  A worker lost in the middle of a call costs only that call, which the
+  scheduler runs again elsewhere; a call that asks for a GPU
+  (:class:`GpuCall`) only goes to workers started with ``--resources GPU=1``.
+  The dashboard's address is printed when bokeh is installed.
+
+Every worker of either backend computes with one thread (OpenMP, numba,
+torch): on a small machine several jobs with several threads each thrash.
+Inside a Dask worker, :func:`in_worker` is true and callers that would start
+a pool of their own (the feature cache) work in-process instead: a worker
+process may not start processes.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
+BACKENDS = ("loky", "dask")
+DASK_RETRIES = 2  # a call that raised (not one whose worker died: the scheduler reruns those) is tried this often again
+
+
+class GpuCall:
+    """A function whose calls need a GPU: the Dask backend sends them only to workers with a ``GPU`` resource."""
+
+    def __init__(self, function: Callable):
+        self.function = function
+
+    def __call__(self, *args):
+        return self.function(*args)
+
+
+def in_worker() -> bool:
+    """Whether this process is a Dask worker (which may not start a process pool)."""
+    if "distributed" not in sys.modules:
+        return False
+    from distributed import get_worker
+
+    try:
+        get_worker()
+    except ValueError:
+        return False
+    return True
 
 
 def _one_thread(function: Callable, args: tuple):
@@ -30,21 +69,26 @@ def _one_thread(function: Callable, args: tuple):
 
 
 def run_parallel(calls: Sequence[tuple[Callable, tuple]], workers: int = 1, progress: bool = False, desc: str = "jobs",
-                 stop_after: float | None = None) -> Iterator[tuple[int, object]]:
+                 stop_after: float | None = None, backend: str = "loky",
+                 scheduler: str | None = None) -> Iterator[tuple[int, object]]:
     """Run ``function(*args)`` for each ``(function, args)``; yield ``(index, result or exception)`` as each finishes.
 
-    ``functions`` must be importable (module level) when ``workers > 1``.
-    With ``stop_after`` (seconds), no call starts after that time; the calls
-    under way finish, and the ones never started are not yielded.
+    ``functions`` must be importable (module level) when they leave this
+    process. With ``stop_after`` (seconds), no call starts after that time;
+    the calls under way finish, and the ones never started are not yielded.
+    ``scheduler`` (Dask backend): a running cluster's address; then
+    ``workers`` is not used.
     """
     from tqdm.auto import tqdm
 
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     started = time.time()
     bar = tqdm(total=len(calls), desc=desc, disable=not progress)
     try:
-        if workers == 1 or len(calls) <= 1:
+        if scheduler is None and (workers == 1 or len(calls) <= 1 or in_worker()):
             for index, (function, args) in enumerate(calls):
                 if stop_after is not None and time.time() - started >= stop_after:
                     return
@@ -55,12 +99,13 @@ def run_parallel(calls: Sequence[tuple[Callable, tuple]], workers: int = 1, prog
                 bar.update()
                 yield index, outcome
             return
-        yield from _pooled(calls, min(workers, len(calls)), bar, started, stop_after)
+        pooled = _on_dask if backend == "dask" else _on_loky
+        yield from pooled(calls, min(workers, len(calls)), bar, started, stop_after, scheduler)
     finally:
         bar.close()
 
 
-def _pooled(calls, workers: int, bar, started: float, stop_after: float | None):
+def _on_loky(calls, workers: int, bar, started: float, stop_after: float | None, scheduler):
     from concurrent.futures import FIRST_COMPLETED, wait
 
     from joblib.externals.loky import ProcessPoolExecutor
@@ -81,3 +126,45 @@ def _pooled(calls, workers: int, bar, started: float, stop_after: float | None):
                 exc = job.exception()
                 bar.update()
                 yield index, exc if exc is not None else job.result()
+
+
+def _on_dask(calls, workers: int, bar, started: float, stop_after: float | None, scheduler: str | None):
+    from distributed import Client, LocalCluster, as_completed
+
+    env = {name: "1" for name in THREAD_VARIABLES}
+    cluster = None if scheduler else LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, env=env,
+                                                  dashboard_address=":0" if _has_bokeh() else None)
+    with Client(scheduler or cluster) as client:
+        if client.dashboard_link and _has_bokeh():
+            print(f"[anseg] Dask dashboard: {client.dashboard_link}", file=sys.stderr, flush=True)
+        # as many calls in flight as the cluster has threads, so that stop_after can hold the rest back
+        slots = max(1, sum(client.nthreads().values())) if scheduler else workers
+        waiting = list(enumerate(calls))[::-1]
+        futures = as_completed()
+        index_of = {}
+
+        def submit():
+            index, (function, args) = waiting.pop()
+            resources = {"GPU": 1} if isinstance(function, GpuCall) else None
+            future = client.submit(_one_thread, function, args, pure=False, retries=DASK_RETRIES, resources=resources)
+            index_of[future.key] = index
+            futures.add(future)
+
+        while waiting and len(index_of) < slots:
+            submit()
+        for future in futures:
+            index = index_of.pop(future.key)
+            outcome = future.exception() if future.status == "error" else future.result()
+            future.release()
+            bar.update()
+            yield index, outcome
+            if waiting and (stop_after is None or time.time() - started < stop_after):
+                submit()
+    if cluster is not None:
+        cluster.close()
+
+
+def _has_bokeh() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("bokeh") is not None

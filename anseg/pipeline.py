@@ -138,6 +138,13 @@ class Segmenter:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write everything needed to segment later, atomically."""
+        data = self.to_bytes()
+        atomic_write(path, lambda tmp: tmp.write_bytes(data))
+
+    def to_bytes(self) -> bytes:
+        """The model file's content (what :meth:`save` writes), e.g. to send from a worker process."""
+        import io
+
         payload = {
             "network_config": asdict(self.network.config),
             "state_dict": self.network.state_dict(),
@@ -146,7 +153,9 @@ class Segmenter:
             "feature_std": torch.as_tensor(self.feature_std),
             "label_names": list(self.label_names),
         }
-        atomic_write(path, lambda tmp: torch.save(payload, tmp))
+        buffer = io.BytesIO()
+        torch.save(payload, buffer)
+        return buffer.getvalue()
 
     @classmethod
     def load(cls, path: str | os.PathLike, device="cpu") -> "Segmenter":

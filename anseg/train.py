@@ -32,15 +32,12 @@ epoch is the one evaluated.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
-import platform
 import random
-import time
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -318,101 +315,3 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
         "per_mesh": per_mesh,
         "predictions": smoothed,
     }
-
-
-# Fields of SegmentConfig ("segment") and TrainConfig ("train") introduced after results were stored, with
-# the value the older results ran with: at that value a field stays out of the key.
-SETTINGS_ADDED_LATER = {
-    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
-                "concave_discount": 3.0},
-    "train": {"embed_norm": False, "schedule": "constant"},
-}
-
-
-@dataclass
-class Experiment:
-    """One trained-and-evaluated configuration: what a table cell is made of."""
-
-    dataset: str
-    category: str | None
-    split_index: int = 0
-    segment: SegmentConfig = field(default_factory=SegmentConfig)
-    train: TrainConfig = field(default_factory=TrainConfig)
-
-    def key(self, dataset_options: dict | None = None) -> str:
-        """A short hash of everything that decides the result, data set options (e.g. ``n_shapes``) included.
-
-        Settings added after results were stored leave the key alone at their
-        default (:data:`SETTINGS_ADDED_LATER`), so those results keep their keys.
-        """
-        keyed = {part: {k: v for k, v in asdict(config).items() if SETTINGS_ADDED_LATER[part].get(k, object()) != v}
-                 for part, config in (("segment", self.segment), ("train", self.train))}
-        text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
-                           **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-def environment() -> dict:
-    """Versions and hardware, recorded beside every result."""
-    import sklearn
-    import trimesh
-
-    return {
-        "python": platform.python_version(), "torch": torch.__version__, "numpy": np.__version__,
-        "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
-        "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
-        "cpus": os.cpu_count(), "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-    }
-
-
-def trained_on(result: dict) -> str:
-    """The machine a stored result was trained on: its GPU, else its CPU count (a notebook may read results made elsewhere)."""
-    env = result["environment"]
-    return env["cuda"] or f"CPU, {env['cpus']} cores"
-
-
-def stored_result_path(out_dir: str | os.PathLike, key: str) -> Path:
-    """Where :func:`run_experiment` stores the result of the experiment with ``key``."""
-    return Path(out_dir, "results", "runs", f"{key}.json")
-
-
-def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike | None = None,
-                   progress: bool = True, **dataset_options) -> dict:
-    """Train on the split's training meshes, evaluate on its test meshes, and return (and store) the result.
-
-    With ``out_dir``, the model goes to ``out_dir/models/<key>.pt`` (with a
-    resumable checkpoint beside it) and the result to
-    ``out_dir/results/runs/<key>.json``; a stored result of the same key is
-    returned without training again.
-    """
-    from anseg import datasets
-
-    key = experiment.key(dataset_options)
-    result_path = stored_result_path(out_dir, key) if out_dir else None
-    if result_path is not None and result_path.is_file():
-        return json.loads(result_path.read_text())
-    load = dict(category=experiment.category, split_index=experiment.split_index, root=root, progress=progress,
-                **dataset_options)
-    train_set = datasets.load(experiment.dataset, split="train", **load)
-    test_set = datasets.load(experiment.dataset, split="test", **load)
-    label_names = train_set[0].label_names
-    started = time.time()
-    model_path = Path(out_dir, "models", f"{key}.pt") if out_dir else None
-    checkpoint = model_path.with_suffix(".ckpt") if model_path else None
-    model = fit(train_set, label_names, experiment.segment, experiment.train, checkpoint, progress)
-    train_seconds = time.time() - started
-    started = time.time()
-    scores = evaluate(model, test_set, progress=progress)
-    result = {
-        "key": key, "dataset": experiment.dataset, "category": experiment.category,
-        "split_index": experiment.split_index, "segment": asdict(experiment.segment), "train": asdict(experiment.train),
-        "n_train": len(train_set), "n_test": len(test_set), "label_names": label_names,
-        "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
-        "train_seconds": train_seconds, "evaluate_seconds": time.time() - started, "environment": environment(),
-    }
-    text = json.dumps(result, indent=1)
-    if model_path is not None:
-        model.save(model_path)
-        checkpoint.unlink(missing_ok=True)
-        atomic_write(result_path, lambda tmp: tmp.write_text(text))
-    return json.loads(text)  # the same form as a stored result

@@ -1,7 +1,7 @@
 """Cross-validation on TRAINING meshes: how a default is chosen (never on a test split).
 
     python -m anseg.validate --study scale --arm default --arm "relative:local_scale=relative" \\
-        [--categories Hand Vase ...] [--folds 3] [--use-folds 0 1 2] [--seeds 0 1] [--jobs 1]
+        [--categories Hand Vase ...] [--folds 3] [--use-folds 0 1 2] [--seeds 0 1] [--workers N | --scheduler ADDRESS]
 
 The training meshes of one fixed PSB split (split 0 by default) are cut into
 ``folds`` folds (mesh ``i`` of the split's training list goes to fold
@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -46,8 +45,9 @@ import numpy as np
 
 from anseg.cache import atomic_write
 from anseg.configs import NAMED, overrides
+from anseg.experiments import Experiment, ResultStore, environment
 from anseg.pipeline import SegmentConfig, Segmenter
-from anseg.train import Experiment, TrainConfig, environment, evaluate, fit
+from anseg.train import TrainConfig, evaluate, fit
 
 DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane", "Bird", "Teddy")
 # SegmentConfig fields that change only how a trained model segments, not the training.
@@ -134,41 +134,39 @@ def load_training_meshes(cell: Cell, root=None) -> list:
                          progress=False, **dict(cell.options))
 
 
-def run_cell(cell: Cell, out: str | Path = DEFAULT_OUT, root=None, progress: bool = False) -> dict:
-    """Train (or reuse the model of) one cell and score its held-out meshes; the result is stored under ``out/runs``."""
-    out = Path(out)
-    key = cell.key()
-    result_path = out / "runs" / f"{key}.json"
-    if result_path.is_file():
-        return json.loads(result_path.read_text())
+def compute_cell(cell: Cell, root=None, model: bytes | None = None, checkpoint: str | None = None) -> tuple[dict, bytes | None]:
+    """Train one cell (or take the trained ``model`` file's bytes) and score its held-out meshes.
+
+    Returns the result and, when it trained, the model file's bytes; writes
+    nothing but ``checkpoint``, so it runs in any worker.
+    """
+    import io
+
     meshes = load_training_meshes(cell, root)
     fold = fold_of(len(meshes), cell.folds)
     train_set = [m for m, f in zip(meshes, fold) if f != cell.fold]
     held_out = [m for m, f in zip(meshes, fold) if f == cell.fold]
     segment, train = cell.configs()
-    model_path = out / "models" / f"{cell.training_key()}.pt"
     started = time.time()
-    if model_path.is_file():
-        model = Segmenter.load(model_path)
-        trained = False
-    else:
-        model = fit(train_set, meshes[0].label_names, segment, train, model_path.with_suffix(".ckpt"), progress)
-        model.save(model_path)
-        model_path.with_suffix(".ckpt").unlink(missing_ok=True)
-        trained = True
+    trained = model is None
+    network = (fit(train_set, meshes[0].label_names, segment, train, checkpoint, progress=False) if trained
+               else Segmenter.load(io.BytesIO(model)))
     train_seconds = time.time() - started
-    scores = evaluate(model, held_out, segment, progress=progress)
+    scores = evaluate(network, held_out, segment, progress=False)
     result = {
-        "key": key, "training_key": cell.training_key(), "arm": cell.arm.name, "category": cell.category,
+        "key": cell.key(), "training_key": cell.training_key(), "arm": cell.arm.name, "category": cell.category,
         "fold": cell.fold, "folds": cell.folds, "seed": cell.seed, "dataset": cell.dataset,
         "split_index": cell.split_index, "segment": asdict(segment), "train": asdict(train),
         "train_meshes": [m.name for m in train_set], "held_out": [m.name for m in held_out],
         "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
         "trained": trained, "train_seconds": train_seconds, "environment": environment(),
     }
-    text = json.dumps(result, indent=1)
-    atomic_write(result_path, lambda tmp: tmp.write_text(text))
-    return json.loads(text)
+    return result, (network.to_bytes() if trained else None)
+
+
+def validation_store(out: str | Path) -> ResultStore:
+    """A study's store: ``<out>/runs/<key>.json``, and the models under ``<out>/models/<training_key>.pt``."""
+    return ResultStore(out, results="runs")
 
 
 def study_cells(arms, categories, folds: int, use_folds, seeds, epochs=None, dataset="psb", split_index=0, options=()) -> list[Cell]:
@@ -179,19 +177,37 @@ def study_cells(arms, categories, folds: int, use_folds, seeds, epochs=None, dat
                                            for n in INFERENCE_ONLY))
 
 
-def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, jobs: int = 1, progress: bool = True) -> list[dict]:
-    """Run (or read back) every cell, ``jobs`` at a time; each result is stored as it finishes."""
+def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, workers: int = 1,
+              scheduler: str | None = None, progress: bool = True) -> list[dict]:
+    """Run (or read back) every cell, ``workers`` at a time (or on the Dask cluster at ``scheduler``).
+
+    Results come back to this process and are stored as they arrive. Cells
+    that train go first; the cells that only change how a trained model
+    segments follow, with that model's bytes.
+    """
     from anseg.parallel import run_parallel
 
-    out = Path(out)
-    calls = [(run_cell, (cell, str(out), root)) for cell in cells]
-    results = []
-    for index, outcome in run_parallel(calls, jobs, progress=progress, desc="validate"):
-        if isinstance(outcome, BaseException):
-            print(f"[anseg] FAILED {cells[index].describe()}: {outcome}", file=sys.stderr, flush=True)
-            continue
-        results.append(outcome)
-    return results
+    store = validation_store(out)
+    results = {cell.key(): store.get(cell.key()) for cell in cells}
+    for phase in ("train", "reuse"):
+        todo = [c for c in cells if results[c.key()] is None
+                and (store.model_path(c.training_key()).is_file()) == (phase == "reuse")]
+        if phase == "reuse":
+            calls = [(compute_cell, (c, root, store.model_path(c.training_key()).read_bytes())) for c in todo]
+        else:
+            first = {}
+            for c in todo:  # one training per model, by the first cell that needs it; its twins reuse it
+                first.setdefault(c.training_key(), c)
+            todo = list(first.values())
+            calls = [(compute_cell, (c, root, None, str(store.checkpoint_path(c.training_key())))) for c in todo]
+        for index, outcome in run_parallel(calls, workers, progress=progress, desc=f"validate ({phase})",
+                                           backend="dask", scheduler=scheduler):
+            if isinstance(outcome, Exception):
+                print(f"[anseg] FAILED {todo[index].describe()}: {outcome}", file=sys.stderr, flush=True)
+                continue
+            result, model = outcome
+            results[result["key"]] = store.put(result, model, model_key=result["training_key"])
+    return [results[c.key()] for c in cells if results[c.key()] is not None]
 
 
 def accuracy_table(results: list[dict]) -> dict[tuple[str, str, int, int], float]:
@@ -282,8 +298,8 @@ def csv_text(rows: list[dict]) -> str:
 
 def read_results(out: str | Path, cells: list[Cell]) -> list[dict]:
     """The stored results of those cells that have one."""
-    paths = [Path(out, "runs", f"{cell.key()}.json") for cell in cells]
-    return [json.loads(p.read_text()) for p in paths if p.is_file()]
+    store = validation_store(out)
+    return [r for r in (store.get(cell.key()) for cell in cells) if r is not None]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -300,7 +316,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--epochs", type=int, help="training epochs (default: TrainConfig's)")
     parser.add_argument("--split", type=int, default=0, help="the fixed PSB split whose TRAINING meshes are used (default: 0)")
     parser.add_argument("--dataset", default="psb")
-    parser.add_argument("--jobs", type=int, default=1, help="cells trained side by side, one thread each (default: 1)")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="cells trained side by side, one Dask worker process of one thread each (default: 1)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (tcp://HOST:8786) to send the cells to")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"result store and report folder (default: {DEFAULT_OUT})")
     parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
     parser.add_argument("--report-only", action="store_true", help="write the report from the stored cells, train nothing")
@@ -315,8 +333,8 @@ def main(argv: list[str] | None = None) -> int:
         baseline = args.baseline or arms[0].name
         if baseline not in {a.name for a in arms}:
             raise ValueError(f"baseline {baseline!r} is not among the arms")
-        if args.jobs < 1:
-            raise ValueError("--jobs must be at least 1")
+        if args.workers < 1:
+            raise ValueError("--workers must be at least 1")
         use_folds = args.use_folds if args.use_folds is not None else list(range(args.folds))
         if any(not 0 <= f < args.folds for f in use_folds):
             raise ValueError(f"--use-folds must lie in 0..{args.folds - 1}")
@@ -327,7 +345,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.report_only:
         results = read_results(args.out, cells)
     else:
-        results = run_study(cells, args.out, args.data, args.jobs, progress=not args.quiet)
+        results = run_study(cells, args.out, args.data, args.workers, args.scheduler, progress=not args.quiet)
     if not results:
         print("no results stored for this study yet", file=sys.stderr)
         return 1

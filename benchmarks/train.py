@@ -8,7 +8,7 @@ Trains on the split's training meshes and evaluates on its test meshes, as
 features (read from the cache when there), rebuilding the hierarchy from the
 current attention (every ``recollapse_every`` epochs), the gradient steps
 (the rest of training) and evaluation. ``--threads 1`` is the setting of the
-parallel runs (``python -m anseg.reproduce --train-only --jobs N``).
+parallel runs (``python -m anseg.reproduce --train-only --workers N``).
 """
 
 from __future__ import annotations

@@ -4,6 +4,7 @@
 #
 #   bash scripts/gpu_train.sh WHEELS_DIR PACKED_PSB OUT_DIR STOP_AFTER_MIN HARD_LIMIT_S NOTEBOOK...
 #
+# The plain process pool (--backend loky), so that Dask need not be carried there.
 # WHEELS_DIR: py3.12 wheels of trimesh, libigl, potpourri3d and gco-wrapper (its ctypes library loads on any
 # CPython, so the cp311 wheel is unzipped as it is); PACKED_PSB: made by `python scripts/pack_psb.py pack`.
 # Writes OUT_DIR/runs.tgz (results/runs plus the models the notebooks render) and OUT_DIR/log.txt; unpack
@@ -21,11 +22,12 @@ nvidia-cuda-mps-control -d 2>/dev/null && echo "MPS daemon started"
 echo "setup took $(( $(date +%s) - t0 )) s"
 left=$(( hard - ($(date +%s) - t0) ))
 # killed hard at the limit, so that what is stored still gets packed below
-(timeout -s KILL $left python3 -m anseg.reproduce --data real --train-only --jobs "$(nproc)" --stop-after "$stop" \
+(timeout -s KILL $left python3 -m anseg.reproduce --data real --train-only --backend loky --workers "$(nproc)" \
+    --stop-after "$stop" \
     --only "$@" 2>&1 | tr '\r' '\n' | grep "^\[anseg\]\|Error" > "$out"/log.txt)
-pkill -9 -f multiprocessing; sleep 1
+pkill -9 -f "loky|multiprocessing"; sleep 1
 models=$(python3 -c "
-from anseg.reproduce import planned_experiments
+from anseg.experiments import planned_experiments
 for e, x in planned_experiments('real', ['fig4', 'explore', 'fig12']):
     if e.dataset != 'psb' or e.category in ('Human', 'Teddy'):
         print(f'models/{e.key(x)}.pt')" | while read -r m; do [ -f "$m" ] && echo "$m"; done)

@@ -1,4 +1,4 @@
-"""The notebooks: their parameters match anseg.reproduce, and the smoke reproduction runs them all cleanly."""
+"""The notebooks: their parameters match the plan, and the smoke reproduction runs them all cleanly."""
 
 from __future__ import annotations
 
@@ -12,7 +12,9 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from anseg.reproduce import COMMON, HEADLINE_END, HEADLINE_START, NOTEBOOKS, PER_NOTEBOOK, REPO, headline, planned_experiments
+from anseg.experiments import COMMON, PER_NOTEBOOK, REPO, planned_experiments
+from anseg.headline import HEADLINE_END, HEADLINE_START, headline
+from anseg.reproduce import NOTEBOOKS
 
 SMOKE_TIMEOUT_S = 1800  # about 4 minutes on a 2-core CPU; the margin is for a loaded machine
 

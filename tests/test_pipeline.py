@@ -10,7 +10,8 @@ import torch
 
 from anseg import datasets
 from anseg.pipeline import SegmentConfig, Segmenter, build_levels, segment
-from anseg.train import Experiment, TrainConfig, evaluate, fit, run_experiment
+from anseg.experiments import Experiment, run_experiment
+from anseg.train import TrainConfig, evaluate, fit
 from conftest import grid_mesh
 
 FAST = SegmentConfig(cycles=2, clusters=4, patch_size=16)

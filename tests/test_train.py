@@ -12,7 +12,8 @@ from sklearn.linear_model import LogisticRegression
 from anseg import datasets, features
 from anseg.metrics import pooled_accuracy
 from anseg.pipeline import SegmentConfig
-from anseg.train import Experiment, TrainConfig, evaluate, feature_statistics, fit
+from anseg.experiments import Experiment
+from anseg.train import TrainConfig, evaluate, feature_statistics, fit
 
 SMALL = SegmentConfig(cycles=2, clusters=4, patch_size=16)
 
@@ -90,7 +91,7 @@ def test_experiment_keys_of_committed_results_stay_put():
 
 
 def test_trained_on_names_the_gpu_or_the_cpu_count():
-    from anseg.train import trained_on
+    from anseg.experiments import trained_on
 
     assert trained_on({"environment": {"cuda": "NVIDIA H100 80GB HBM3", "cpus": 16}}) == "NVIDIA H100 80GB HBM3"
     assert trained_on({"environment": {"cuda": None, "cpus": 2}}) == "CPU, 2 cores"

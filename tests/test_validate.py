@@ -10,7 +10,7 @@ import torch
 
 from anseg import validate
 from anseg.configs import parse_overrides
-from anseg.train import Experiment
+from anseg.experiments import Experiment
 from anseg.validate import Arm, Cell, fold_of, paired_difference
 
 SMALL = {"cycles": 2, "clusters": 4}
@@ -112,7 +112,7 @@ def test_validation_never_reads_a_test_mesh(data_root, tmp_path, monkeypatch):
     monkeypatch.setattr(validate, "fit", lambda *args, **kwargs: _Stub())
     monkeypatch.setattr(validate, "evaluate", lambda model, meshes, config, progress: _scores(meshes))
     cell = Cell(Arm("default"), "Vase", fold=1, seed=0)
-    result = validate.run_cell(cell, tmp_path, root=data_root)
+    (result,) = validate.run_study([cell], tmp_path, root=data_root, progress=False)
     split = psb.psb_split("Vase", 0)
     ids = {int(p.stem) for p in read}
     assert ids == set(split["train"]) and not ids & set(split["test"])
@@ -121,8 +121,8 @@ def test_validation_never_reads_a_test_mesh(data_root, tmp_path, monkeypatch):
 
 
 class _Stub:
-    def save(self, path):
-        pass
+    def to_bytes(self):
+        return b"a model"
 
 
 def _scores(meshes):

@@ -1,0 +1,373 @@
+"""The experiment layer: what an experiment is, where its result is kept, the plan of the notebooks, and running many.
+
+* :class:`Experiment` and its key: one trained-and-evaluated configuration,
+  keyed by everything that decides its result.
+* :class:`ResultStore`: ``<root>/results/runs/<key>.json`` and
+  ``<root>/models/<key>.pt``, written atomically by the process that asked
+  for the run (never by a worker, so workers need no file system shared
+  with it), with a resumable checkpoint beside the model while training.
+* :func:`train_and_evaluate`: the work of one experiment; it returns the
+  result and the model file's bytes and writes nothing but its checkpoint.
+* The plan: the notebooks' parameters (:data:`COMMON`, :data:`PER_NOTEBOOK`)
+  and every experiment they ask for (:func:`planned_experiments`).
+* :func:`run_plan`: many experiments at once through
+  :func:`anseg.parallel.run_parallel`, on a process pool of this machine, a
+  Dask ``LocalCluster`` or an existing Dask cluster; validation studies
+  (:mod:`anseg.validate`) run through the same runner.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from anseg.cache import atomic_write
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig, evaluate, fit
+
+REPO = Path(__file__).resolve().parent.parent
+
+# Fields of SegmentConfig ("segment") and TrainConfig ("train") introduced after results were stored, with
+# the value the older results ran with: at that value a field stays out of the key.
+SETTINGS_ADDED_LATER = {
+    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
+                "concave_discount": 3.0},
+    "train": {"embed_norm": False, "schedule": "constant"},
+}
+
+
+@dataclass
+class Experiment:
+    """One trained-and-evaluated configuration: what a table cell is made of."""
+
+    dataset: str
+    category: str | None
+    split_index: int = 0
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+
+    def key(self, dataset_options: dict | None = None) -> str:
+        """A short hash of everything that decides the result, data set options (e.g. ``n_shapes``) included.
+
+        Settings added after results were stored leave the key alone at their
+        default (:data:`SETTINGS_ADDED_LATER`), so those results keep their keys.
+        """
+        keyed = {part: {k: v for k, v in asdict(config).items() if SETTINGS_ADDED_LATER[part].get(k, object()) != v}
+                 for part, config in (("segment", self.segment), ("train", self.train))}
+        text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
+                           **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def environment() -> dict:
+    """Versions and hardware, recorded beside every result."""
+    import sklearn
+    import trimesh
+
+    return {
+        "python": platform.python_version(), "torch": torch.__version__, "numpy": np.__version__,
+        "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
+        "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(), "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+    }
+
+
+def trained_on(result: dict) -> str:
+    """The machine a stored result was trained on: its GPU, else its CPU count (a notebook may read results made elsewhere)."""
+    env = result["environment"]
+    return env["cuda"] or f"CPU, {env['cpus']} cores"
+
+
+class ResultStore:
+    """Results (under ``results``, relative to the root) and models (under ``models``); every write is atomic."""
+
+    def __init__(self, root: str | os.PathLike, results: str = "results/runs"):
+        self.root = Path(root)
+        self.results = self.root / results
+
+    def result_path(self, key: str) -> Path:
+        return self.results / f"{key}.json"
+
+    def model_path(self, key: str) -> Path:
+        return self.root / "models" / f"{key}.pt"
+
+    def checkpoint_path(self, key: str) -> Path:
+        return self.model_path(key).with_suffix(".ckpt")
+
+    def get(self, key: str) -> dict | None:
+        """The stored result of ``key``, or None."""
+        path = self.result_path(key)
+        return json.loads(path.read_text()) if path.is_file() else None
+
+    def put(self, result: dict, model: bytes | None = None, model_key: str | None = None) -> dict:
+        """Store a result and its model file's bytes (under ``model_key``, default the result's key).
+
+        The model goes first, so a stored result always has its model.
+        """
+        model_key = model_key or result["key"]
+        if model is not None:
+            atomic_write(self.model_path(model_key), lambda tmp: tmp.write_bytes(model))
+            self.checkpoint_path(model_key).unlink(missing_ok=True)
+        text = json.dumps(result, indent=1)
+        atomic_write(self.result_path(result["key"]), lambda tmp: tmp.write_text(text))
+        return json.loads(text)  # the form a stored result is read back in
+
+
+def train_and_evaluate(experiment: Experiment, dataset_options: dict | None = None, root=None,
+                       checkpoint: str | os.PathLike | None = None, progress: bool = False) -> tuple[dict, bytes]:
+    """Train on the split's training meshes and evaluate on its test meshes: the result and the model file's bytes.
+
+    Writes nothing but ``checkpoint`` (resumed from when it holds the same
+    settings), so it can run anywhere: in this process, a pool worker or a
+    Dask worker.
+    """
+    from anseg import datasets
+
+    dataset_options = dict(dataset_options or {})
+    load = dict(category=experiment.category, split_index=experiment.split_index, root=root, progress=progress,
+                **dataset_options)
+    train_set = datasets.load(experiment.dataset, split="train", **load)
+    test_set = datasets.load(experiment.dataset, split="test", **load)
+    label_names = train_set[0].label_names
+    started = time.time()
+    model = fit(train_set, label_names, experiment.segment, experiment.train, checkpoint, progress)
+    train_seconds = time.time() - started
+    started = time.time()
+    scores = evaluate(model, test_set, progress=progress)
+    result = {
+        "key": experiment.key(dataset_options), "dataset": experiment.dataset, "category": experiment.category,
+        "split_index": experiment.split_index, "segment": asdict(experiment.segment), "train": asdict(experiment.train),
+        "n_train": len(train_set), "n_test": len(test_set), "label_names": label_names,
+        "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
+        "train_seconds": train_seconds, "evaluate_seconds": time.time() - started, "environment": environment(),
+    }
+    return result, model.to_bytes()
+
+
+def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike | None = None,
+                   progress: bool = True, **dataset_options) -> dict:
+    """Train and evaluate one experiment here, or read its stored result; the result is returned (and stored).
+
+    With ``out_dir`` the result and the model go to its :class:`ResultStore`
+    (a checkpoint beside the model while training) and a stored result of the
+    same key is returned without training again.
+    """
+    store = ResultStore(out_dir) if out_dir else None
+    key = experiment.key(dataset_options)
+    if store is not None and (stored := store.get(key)) is not None:
+        return stored
+    checkpoint = store.checkpoint_path(key) if store else None
+    result, model = train_and_evaluate(experiment, dataset_options, root, checkpoint, progress)
+    return store.put(result, model) if store else json.loads(json.dumps(result))
+
+
+# Parameters shared by every notebook, per run kind. Notebook-specific ones follow.
+COMMON = {
+    "real": {"dataset": "psb", "epochs": 60, "seed": 0, "device": "auto", "smoke": False},
+    "synthetic": {"dataset": "synthetic", "epochs": 12, "seed": 0, "device": "auto", "smoke": False},
+    "smoke": {"dataset": "synthetic", "epochs": 2, "seed": 0, "device": "cpu", "smoke": True},
+}
+
+SYNTHETIC_CATEGORIES = ["figure", "vessel"]
+PSB_ABLATION = ["Human", "Teddy", "Airplane"]
+# explore.ipynb: segment the category's first test mesh with a model trained here, statically rendered;
+# a user points mesh_path / model_path at their own files and sets interactive for a trame view.
+EXPLORE_DEFAULTS = {"mesh_path": None, "model_path": None, "interactive": False}
+
+PER_NOTEBOOK = {
+    "table1_psb.ipynb": {
+        "real": {"categories": None, "splits": [0, 1, 2, 3, 4]},
+        "synthetic": {"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1]},
+        "smoke": {"categories": ["figure"], "splits": [0]},
+    },
+    "table2_coseg.ipynb": {
+        "real": {"dataset": "coseg", "categories": ["coseg_aliens", "coseg_chairs", "coseg_vases"]},
+        "synthetic": {"categories": SYNTHETIC_CATEGORIES},
+        "smoke": {"categories": ["vessel"]},
+    },
+    "table3_human.ipynb": {
+        "real": {"dataset": "human_seg", "category": None},
+        "synthetic": {"dataset": "synthetic", "category": "figure"},
+        "smoke": {"dataset": "synthetic", "category": "figure"},
+    },
+    "table4_ablation.ipynb": {
+        "real": {"categories": PSB_ABLATION},
+        "synthetic": {"categories": SYNTHETIC_CATEGORIES},
+        "smoke": {"categories": ["figure"]},
+    },
+    "fig12_features.ipynb": {
+        "real": {"categories": PSB_ABLATION},
+        "synthetic": {"categories": ["figure"]},
+        "smoke": {"categories": ["figure"]},
+    },
+    "fig11_cycles_ratio.ipynb": {
+        "real": {"categories": ["Airplane"], "cycles_list": [1, 2, 3, 4, 5, 6], "ratios": [0.3, 0.4, 0.5, 0.6, 0.7]},
+        "synthetic": {"categories": ["figure"], "cycles_list": [1, 2, 4], "ratios": [0.3, 0.5, 0.7]},
+        "smoke": {"categories": ["figure"], "cycles_list": [1, 2], "ratios": [0.5]},
+    },
+    "fig4_attention.ipynb": {
+        "real": {"category": "Human"},
+        "synthetic": {"category": "figure"},
+        "smoke": {"category": "figure"},
+    },
+    "explore.ipynb": {
+        "real": {"category": "Teddy", **EXPLORE_DEFAULTS},
+        "synthetic": {"category": "figure", **EXPLORE_DEFAULTS},
+        "smoke": {"category": "figure", **EXPLORE_DEFAULTS},
+    },
+}
+
+
+# Fig. 4's modes; also the cost order: attention-driven runs collapse every few epochs, "none" never does
+ABLATION_MODES = ("nonuniform", "uniform", "none")
+# Table IV's rows: (SegmentConfig overrides, TrainConfig overrides). "none" is the paper's row: the attention
+# module and the downsampling removed, a per-face classifier on the same features (depth 0) plus the graph cut;
+# "none, transformer" is our network on the input mesh alone, a stronger control the paper does not have.
+TABLE_IV_ROWS = {
+    "nonuniform": ({"mode": "nonuniform"}, {}),
+    "uniform": ({"mode": "uniform"}, {}),
+    "none": ({"mode": "none"}, {"depth": 0}),
+    "none, transformer": ({"mode": "none"}, {}),
+}
+
+
+def notebook_settings(epochs: int, seed: int, device: str, smoke: bool) -> tuple[dict, dict, TrainConfig]:
+    """Data set options, SegmentConfig overrides and TrainConfig of a notebook run (its setup cell does the same).
+
+    A smoke run only checks that a notebook runs from end to end: 4 shapes, a tiny model, 2 cycles.
+    """
+    shape_options = {"n_shapes": 4} if smoke else {}
+    segment_options = {"cycles": 2, "clusters": 4} if smoke else {}
+    train = TrainConfig(epochs=epochs, seed=seed, device=device, **({"width": 16, "depth": 1} if smoke else {}))
+    return shape_options, segment_options, train
+
+
+def _notebook_cells(name: str, p: dict) -> list[tuple]:
+    """(data set, category, split, SegmentConfig options[, TrainConfig options]) of every result notebook ``name`` asks for."""
+    from anseg import datasets
+    from anseg.datasets import synthetic
+    from anseg.features import ABLATION_SETS
+
+    dataset = p["dataset"]
+    categories = p.get("categories")
+    if categories is None and "categories" in p:
+        categories = list(synthetic.CATEGORIES if dataset == "synthetic" else datasets.PSB_CATEGORIES)
+    if name == "table1_psb.ipynb":
+        return [(dataset, c, s, {}) for s in p["splits"] for c in categories]  # split by split: each finishes whole
+    if name == "table2_coseg.ipynb":
+        return [(c, None, 0, {}) if c in datasets.DATASETS else (dataset, c, 0, {}) for c in categories]
+    if name == "table3_human.ipynb":
+        return [(dataset, p["category"], 0, {})]
+    if name == "table4_ablation.ipynb":
+        return [(dataset, c, 0, *TABLE_IV_ROWS[row]) for c in categories for row in TABLE_IV_ROWS]
+    if name == "fig11_cycles_ratio.ipynb":
+        return [(dataset, c, 0, {"cycles": n, "ratio": r}) for c in categories for r in p["ratios"] for n in p["cycles_list"]]
+    if name == "fig12_features.ipynb":
+        return [(dataset, c, 0, {"groups": g}) for c in categories for g in ABLATION_SETS.values()]
+    if name == "fig4_attention.ipynb":
+        return [(dataset, p["category"], 0, {"mode": m}) for m in ABLATION_MODES]
+    if name == "explore.ipynb":
+        return [] if p.get("model_path") else [(dataset, p["category"], 0, {})]
+    raise ValueError(f"no plan for notebook {name}")
+
+
+def planned_experiments(kind: str, only: list[str] | None = None) -> list[tuple[Experiment, dict]]:
+    """Every (Experiment, data set options) the notebooks of ``kind`` train, without repeats.
+
+    In notebook order, and inside a notebook the costliest runs first.
+    """
+    from dataclasses import replace
+
+    plan = {}
+    for name in selected_notebooks(only):
+        p = {**COMMON[kind], **PER_NOTEBOOK[name][kind]}
+        shape_options, segment_options, train = notebook_settings(p["epochs"], p["seed"], p["device"], p["smoke"])
+        cells = sorted(_notebook_cells(name, p), key=lambda cell: ABLATION_MODES.index(cell[3].get("mode", "nonuniform")))
+        for data, category, split, options, *train_options in cells:
+            settings = replace(train, **(train_options[0] if train_options else {}))
+            experiment = Experiment(data, category, split, SegmentConfig(**{**segment_options, **options}), settings)
+            extra = shape_options if data == "synthetic" else {}
+            plan.setdefault(experiment.key(extra), (experiment, extra))
+    return list(plan.values())
+
+
+def selected_notebooks(only: list[str] | None) -> list[str]:
+    return [n for n in PER_NOTEBOOK if not only or any(o in n for o in only)]
+
+
+def _describe(experiment) -> str:
+    where = "/".join(str(x) for x in (experiment.dataset, experiment.category) if x is not None)
+    s = experiment.segment
+    return f"{where} split {experiment.split_index} {s.mode} N={s.cycles} r={s.ratio} groups={'+'.join(s.groups)}"
+
+
+def _precompute_features(plan, jobs: int) -> None:
+    """Fill the feature cache for every mesh of the plan, one process pool per feature set, before training starts."""
+    from anseg import datasets, features
+
+    sources = {}
+    for experiment, extra in plan:
+        split = experiment.split_index if experiment.dataset == "synthetic" else 0  # "all" is every split's meshes
+        source = (experiment.dataset, experiment.category, split, tuple(sorted(extra.items())))
+        sources.setdefault(experiment.segment.groups, set()).add(source)
+    for groups, wanted in sources.items():
+        meshes = [m.mesh for data, category, split, extra in sorted(wanted, key=str)
+                  for m in datasets.load(data, category, "all", split, progress=False, **dict(extra))]
+        features.compute_many(meshes, groups, workers=jobs, progress=False)
+
+
+def output_dirs(kind: str, out: Path | None) -> tuple[Path, Path]:
+    """Where executed notebooks and the result store (figures, results, models) go for a run kind."""
+    if kind == "real" and out is None:
+        return REPO / "notebooks" / "executed", REPO
+    base = out or REPO / "runs" / kind
+    return base / "notebooks", base
+
+
+def run_plan(plan: list[tuple[Experiment, dict]], store: ResultStore, workers: int = 1, scheduler: str | None = None,
+             backend: str = "dask", stop_after: float | None = None, root=None) -> int:
+    """Train (or find stored) every experiment of ``plan``; returns the number that failed.
+
+    The runs go through :func:`anseg.parallel.run_parallel` (``backend``,
+    ``workers``, ``scheduler``); each result comes back here and is stored as
+    it arrives. With ``stop_after`` (seconds) no run starts after that time.
+    Checkpoints are written beside the store's models, so a retried run
+    continues from its checkpoint where the workers see this file system.
+    """
+    from anseg.parallel import GpuCall, run_parallel
+
+    todo = [(e, x) for e, x in plan if store.get(e.key(x)) is None]
+    print(f"[anseg] {len(plan)} planned runs, {len(plan) - len(todo)} already stored, {len(todo)} to train "
+          f"-> {store.root}", flush=True)
+    if not todo:
+        return 0
+    started = time.time()
+    if backend != "dask" or scheduler is None:  # a local run fills the feature cache first, in parallel
+        _precompute_features(todo, workers)
+        print(f"[anseg] features ready after {time.time() - started:.0f} s", flush=True)
+    calls = [(GpuCall(train_and_evaluate) if e.train.device.startswith("cuda") else train_and_evaluate,
+              (e, x, root, str(store.checkpoint_path(e.key(x))))) for e, x in todo]
+    remaining = stop_after and max(0.0, stop_after - (time.time() - started))
+    failed = finished = 0
+    for index, outcome in run_parallel(calls, workers, stop_after=remaining, backend=backend, scheduler=scheduler):
+        experiment = todo[index][0]
+        finished += 1
+        if isinstance(outcome, Exception):  # report and go on: the other runs are still worth having
+            failed += 1
+            print(f"[anseg] {finished}/{len(todo)} FAILED {_describe(experiment)}: {outcome}", file=sys.stderr, flush=True)
+            continue
+        result = store.put(*outcome)
+        print(f"[anseg] {finished}/{len(todo)} {_describe(experiment)}: {100 * result['accuracy']['unit_area']:.2f} % "
+              f"(train {result['train_seconds']:.0f} s; {time.time() - started:.0f} s so far)", flush=True)
+    if finished < len(todo):
+        print(f"[anseg] stopped after {stop_after:.0f} s: {len(todo) - finished} run(s) not started", flush=True)
+    return failed
