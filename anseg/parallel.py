@@ -32,6 +32,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
 BACKENDS = ("loky", "dask")
@@ -128,7 +129,36 @@ def _on_loky(calls, workers: int, bar, started: float, stop_after: float | None,
                 yield index, exc if exc is not None else job.result()
 
 
+@contextmanager
+def _main_not_reimported():
+    """While active, processes started with ``spawn`` do not run the caller's ``__main__`` again.
+
+    ``spawn`` re-imports the main module by its path in every new process, so
+    a script without a main guard would start over in each Dask worker (and
+    code read from stdin cannot be found). With no ``__file__`` and an empty
+    ``__spec__`` on ``__main__`` there is nothing to re-import; the workers
+    need nothing from it (the calls are module-level functions, and Dask
+    pickles anything defined in ``__main__`` by value).
+    """
+    main = sys.modules["__main__"]
+    spec, path = getattr(main, "__spec__", None), getattr(main, "__file__", None)
+    main.__spec__ = None  # spawn reads the attribute, so it stays, empty
+    if path is not None:
+        del main.__file__
+    try:
+        yield
+    finally:
+        main.__spec__ = spec
+        if path is not None:
+            main.__file__ = path
+
+
 def _on_dask(calls, workers: int, bar, started: float, stop_after: float | None, scheduler: str | None):
+    with _main_not_reimported():  # for the whole run: the nanny restarts a lost worker with spawn too
+        yield from _dask_calls(calls, workers, bar, started, stop_after, scheduler)
+
+
+def _dask_calls(calls, workers: int, bar, started: float, stop_after: float | None, scheduler: str | None):
     from distributed import Client, LocalCluster, as_completed
 
     env = {name: "1" for name in THREAD_VARIABLES}

@@ -38,3 +38,26 @@ def test_a_plain_script_without_main_guard_runs_with_a_cold_cache(tmp_path):
     assert run.stdout.count("script body ran") == 1
     assert "labels" in run.stdout
     assert len(list((tmp_path / "cache" / "features").glob("*.npy"))) >= 20
+
+
+PLAN_SCRIPT = textwrap.dedent('''
+    from anseg.experiments import Experiment, ResultStore, run_plan
+    from anseg.pipeline import SegmentConfig
+    from anseg.train import TrainConfig
+
+    print("script body ran")
+    plan = [(Experiment("synthetic", "figure", 0, SegmentConfig(cycles=1, clusters=4),
+                        TrainConfig(epochs=1, width=16, depth=1, seed=seed, device="cpu")), {"n_shapes": 4})
+            for seed in range(2)]
+    assert run_plan(plan, ResultStore("store"), workers=2) == 0
+    print("stored", sum(ResultStore("store").get(e.key(x)) is not None for e, x in plan))
+''')
+
+
+@pytest.mark.slow
+def test_a_plan_on_a_local_cluster_from_a_plain_script(tmp_path):
+    (tmp_path / "plan.py").write_text(PLAN_SCRIPT)
+    env = {**os.environ, "ANSEG_CACHE": str(tmp_path / "cache")}
+    run = subprocess.run([sys.executable, "plan.py"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.count("script body ran") == 1 and "stored 2" in run.stdout
