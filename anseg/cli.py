@@ -43,7 +43,7 @@ def _add_data_options(parser: argparse.ArgumentParser) -> None:
 def _parser() -> argparse.ArgumentParser:
     from anseg import __version__
     from anseg.configs import NAMED
-    from anseg.pipeline import MODES, SegmentConfig
+    from anseg.pipeline import DOWNSAMPLING_MODES, SegmentConfig
 
     segment_defaults = SegmentConfig()
     parser = argparse.ArgumentParser(prog="anseg", description=__doc__.split("\n\n")[0],
@@ -58,7 +58,7 @@ def _parser() -> argparse.ArgumentParser:
                        help="named configuration (anseg.configs; default: %(default)s)")
     train.add_argument("--set", dest="overrides", default="", metavar="FIELD=VALUE[,...]",
                        help="settings on top of the configuration: SegmentConfig fields, TrainConfig ones as train.FIELD")
-    train.add_argument("--mode", choices=MODES, help="downsampling mode (default: the configuration's)")
+    train.add_argument("--mode", choices=DOWNSAMPLING_MODES, help="downsampling mode (default: the configuration's)")
     train.add_argument("--cycles", type=int, help="downsampling cycles N (default: the configuration's)")
     train.add_argument("--ratio", type=float, help="faces kept per cycle (default: the configuration's)")
     train.add_argument("--epochs", type=int, help="epochs (default: the configuration's)")

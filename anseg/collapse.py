@@ -78,7 +78,8 @@ from numba import njit
 
 from anseg.mesh import Mesh, MeshError
 
-MODES = ("nonuniform", "uniform", "random")
+# how a collapse picks its edges (the engine's modes; "random" is a control)
+COLLAPSE_MODES = ("nonuniform", "uniform", "random")
 PRIORITIES = ("score", "weighted")
 MIN_FACE_QUALITY = 1e-3
 _NO_BOUNDARY_RINGS = 1e6  # rings assigned when a mesh has a single label
@@ -705,8 +706,8 @@ def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonunif
     Returns the coarse mesh (alive faces in fine-index order, used vertices
     compacted) and the :class:`CollapseRecord`.
     """
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if mode not in COLLAPSE_MODES:
+        raise ValueError(f"mode must be one of {COLLAPSE_MODES}, got {mode!r}")
     if priority not in PRIORITIES:
         raise ValueError(f"priority must be one of {PRIORITIES}, got {priority!r}")
     if not 0.0 < ratio <= 1.0:

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from anseg.cache import atomic_write
-from anseg.pipeline import SegmentConfig
+from anseg.pipeline import DOWNSAMPLING_MODES, SegmentConfig
 from anseg.train import TrainConfig, evaluate, fit
 
 REPO = Path(__file__).resolve().parent.parent
@@ -227,8 +227,6 @@ PER_NOTEBOOK = {
 }
 
 
-# Fig. 4's modes; also the cost order: attention-driven runs collapse every few epochs, "none" never does
-ABLATION_MODES = ("nonuniform", "uniform", "none")
 # Table IV's rows: (SegmentConfig overrides, TrainConfig overrides). "none" is the paper's row: the attention
 # module and the downsampling removed, a per-face classifier on the same features (depth 0) plus the graph cut;
 # "none, transformer" is our network on the input mesh alone, a stronger control the paper does not have.
@@ -274,7 +272,7 @@ def _notebook_cells(name: str, p: dict) -> list[tuple]:
     if name == "fig12_features.ipynb":
         return [(dataset, c, 0, {"groups": g}) for c in categories for g in ABLATION_SETS.values()]
     if name == "fig4_attention.ipynb":
-        return [(dataset, p["category"], 0, {"mode": m}) for m in ABLATION_MODES]
+        return [(dataset, p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
     if name == "explore.ipynb":
         return [] if p.get("model_path") else [(dataset, p["category"], 0, {})]
     raise ValueError(f"no plan for notebook {name}")
@@ -291,7 +289,8 @@ def planned_experiments(kind: str, only: list[str] | None = None) -> list[tuple[
     for name in selected_notebooks(only):
         p = {**COMMON[kind], **PER_NOTEBOOK[name][kind]}
         shape_options, segment_options, train = notebook_settings(p["epochs"], p["seed"], p["device"], p["smoke"])
-        cells = sorted(_notebook_cells(name, p), key=lambda cell: ABLATION_MODES.index(cell[3].get("mode", "nonuniform")))
+        # costliest first: attention-driven runs collapse every few epochs, "none" never does
+        cells = sorted(_notebook_cells(name, p), key=lambda cell: DOWNSAMPLING_MODES.index(cell[3].get("mode", "nonuniform")))
         for data, category, split, options, *train_options in cells:
             settings = replace(train, **(train_options[0] if train_options else {}))
             experiment = Experiment(data, category, split, SegmentConfig(**{**segment_options, **options}), settings)

@@ -57,7 +57,8 @@ from anseg.graphcut import smooth as graph_cut
 from anseg.mesh import Mesh
 from anseg.model import AttentionSegmenter, ModelConfig
 
-MODES = ("nonuniform", "uniform", "none")
+# how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
+DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
 COMBINE = ("coarsest", "all", "decay")
 LOCAL_SCALES = ("unit_area", "relative")
 
@@ -90,8 +91,8 @@ class SegmentConfig:
     seed: int = 0
 
     def __post_init__(self):
-        if self.mode not in MODES:
-            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if self.mode not in DOWNSAMPLING_MODES:
+            raise ValueError(f"mode must be one of {DOWNSAMPLING_MODES}, got {self.mode!r}")
         if self.combine not in COMBINE:
             raise ValueError(f"combine must be one of {COMBINE}, got {self.combine!r}")
         if self.priority not in collapse.PRIORITIES:

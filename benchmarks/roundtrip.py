@@ -37,10 +37,9 @@ import warnings
 import numpy as np
 
 from anseg import datasets
-from anseg.collapse import CollapseWarning, compose, downsample, one_hot, pool_labels, rings_to_other_label, upsample_through
+from anseg.collapse import COLLAPSE_MODES, CollapseWarning, compose, downsample, one_hot, pool_labels, rings_to_other_label, upsample_through
 from anseg.metrics import pooled_accuracy
 
-MODES = ("nonuniform", "uniform", "random")
 
 
 def oracle_scores(mesh, labels, rng) -> np.ndarray:
@@ -118,13 +117,13 @@ def main(argv=None) -> None:
         sets.append(("human_seg", None))
     split = "all" if args.all_meshes else "test"
     print(f"{args.cycles} cycles at ratio {args.ratio}, no smoothing; unit-area accuracy (%) of the round trip")
-    print(f"{'set':<12}{'meshes':>7}" + "".join(f"{m:>12}" for m in MODES) + f"{'missed':>8}{'seconds':>9}")
+    print(f"{'set':<12}{'meshes':>7}" + "".join(f"{m:>12}" for m in COLLAPSE_MODES) + f"{'missed':>8}{'seconds':>9}")
     rows = []
     for name, category in sets:
         items = datasets.load(name, category=category, split=split, progress=False)
         row = {"set": category or name, "meshes": len(items)}
         started, missed = time.perf_counter(), 0
-        for mode in MODES:
+        for mode in COLLAPSE_MODES:
             predicted = []
             for item in items:
                 labels, misses = round_trip(item, mode, args.cycles, args.ratio, args.seed)
@@ -135,11 +134,11 @@ def main(argv=None) -> None:
         row["missed_targets"] = missed
         row["seconds"] = time.perf_counter() - started
         rows.append(row)
-        print(f"{row['set']:<12}{row['meshes']:>7}" + "".join(f"{row[m]:>12.2f}" for m in MODES)
+        print(f"{row['set']:<12}{row['meshes']:>7}" + "".join(f"{row[m]:>12.2f}" for m in COLLAPSE_MODES)
               + f"{missed:>8}{row['seconds']:>9.1f}", flush=True)
     psb_rows = [r for r in rows if r["set"] != "human_seg"]
     if psb_rows:
-        print(f"{'PSB mean':<19}" + "".join(f"{np.mean([r[m] for r in psb_rows]):>12.2f}" for m in MODES))
+        print(f"{'PSB mean':<19}" + "".join(f"{np.mean([r[m] for r in psb_rows]):>12.2f}" for m in COLLAPSE_MODES))
     print("missed: downsampling cycles that stopped above their face target (all modes)")
     if args.out:
         with open(args.out, "w", newline="") as handle:

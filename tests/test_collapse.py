@@ -13,7 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from anseg.collapse import (
-    MODES,
+    COLLAPSE_MODES,
     PRIORITIES,
     CollapseWarning,
     compose,
@@ -134,7 +134,7 @@ def run_cycle(mesh, mode, ratio, rng, **options):
 
 # ----------------------------------------------------------------------------- properties
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(mesh=meshes(), mode=st.sampled_from(MODES), ratio=st.floats(0.3, 0.9), seed=st.integers(0, 1000),
+@given(mesh=meshes(), mode=st.sampled_from(COLLAPSE_MODES), ratio=st.floats(0.3, 0.9), seed=st.integers(0, 1000),
        once_per_pass=st.booleans(), priority=st.sampled_from(PRIORITIES))
 def test_cycles_keep_topology_and_undo_exactly(mesh, mode, ratio, seed, once_per_pass, priority):
     rng = np.random.default_rng(seed)
@@ -151,7 +151,7 @@ def test_cycles_keep_topology_and_undo_exactly(mesh, mode, ratio, seed, once_per
 
 
 @settings(max_examples=15, deadline=None)
-@given(mesh=meshes(), mode=st.sampled_from(MODES), label=st.integers(0, 3))
+@given(mesh=meshes(), mode=st.sampled_from(COLLAPSE_MODES), label=st.integers(0, 3))
 def test_constant_labels_survive_the_round_trip(mesh, mode, label):
     rng = np.random.default_rng(0)
     records, current = [], mesh
@@ -164,7 +164,7 @@ def test_constant_labels_survive_the_round_trip(mesh, mode, label):
     np.testing.assert_array_equal(upsample_through(records, one_hot(coarse_labels, 4)), one_hot(labels, 4))
 
 
-@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("mode", COLLAPSE_MODES)
 def test_closed_meshes_reach_the_target_each_cycle(mode):
     rng = np.random.default_rng(1)
     mesh = bumpy_sphere(4, rng)  # 5120 faces
@@ -381,7 +381,7 @@ def test_bad_ratio_and_meshes_raise():
         downsample(Mesh(TETRA.vertices, [[0, 1, 1]]), mode="uniform")
 
 
-@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("mode", COLLAPSE_MODES)
 def test_a_tetrahedron_stops_with_a_warning(mode):
     scores = np.arange(4.0) if mode == "nonuniform" else None
     with pytest.warns(CollapseWarning, match="stopped at 4 faces"):
@@ -418,7 +418,7 @@ def test_real_meshes_four_cycles(psb_sample, mode):
         assert item.mesh.face_areas[back == item.labels].sum() / item.mesh.face_areas.sum() > 0.9
 
 
-@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("mode", COLLAPSE_MODES)
 def test_no_face_folds_over_on_a_flat_mesh(mode):
     """A flat mesh stays flat and facing up: a fold-over is a 180-degree normal flip."""
     rng = np.random.default_rng(15)

@@ -11,7 +11,7 @@ import torch
 from anseg import datasets
 from anseg.pipeline import SegmentConfig, Segmenter, build_levels, segment
 from anseg.experiments import Experiment, run_experiment
-from anseg.train import TrainConfig, evaluate, fit
+from anseg.train import TrainConfig, fit
 from conftest import grid_mesh
 
 FAST = SegmentConfig(cycles=2, clusters=4, patch_size=16)
