@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.datasets import DatasetError, LabeledMesh, labeled_mesh, natural_key, progress_bar, read_integer_column, read_mesh
+from anseg.datasets.common import DatasetError, LabeledMesh, labeled_mesh, natural_key, progress_bar, read_integer_column, read_mesh
 from anseg.datasets.archive import dataset_folder
 from anseg.datasets.coseg import zero_based
 from anseg.datasets.meshcnn import majority_of_three

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.datasets import DatasetError, LabeledMesh, labeled_mesh, progress_bar, read_mesh
+from anseg.datasets.common import DatasetError, LabeledMesh, labeled_mesh, progress_bar, read_mesh
 from anseg.datasets.archive import dataset_folder
 
 FOLDER = "LabeledDB_new"

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from anseg.datasets import SPLITS, DatasetError, LabeledMesh, progress_bar
+from anseg.datasets.common import SPLITS, DatasetError, LabeledMesh, progress_bar
 from anseg.mesh import Mesh, MeshError, repair
 
 CATEGORIES = ("figure", "vessel")
