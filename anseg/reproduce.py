@@ -20,6 +20,7 @@ GPU box) and sessions.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -48,7 +49,8 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
     names = selected_notebooks(only)
     failed = 0
     for name in names:
-        params = {**COMMON[kind], **PER_NOTEBOOK[name][kind], "output_dir": str(results_root)}
+        # relative to the notebooks' folder (their working directory): executed notebooks name no machine's paths
+        params = {**COMMON[kind], **PER_NOTEBOOK[name][kind], "output_dir": os.path.relpath(results_root, NOTEBOOKS)}
         started = time.time()
         print(f"[anseg] {name} ({kind}) ...", flush=True)
         try:
