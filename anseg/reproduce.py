@@ -54,9 +54,9 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
         started = time.time()
         print(f"[anseg] {name} ({kind}) ...", flush=True)
         try:
-            papermill.execute_notebook(
-                str(NOTEBOOKS / name),
-                str(executed_dir / name),
+            papermill.execute_notebook(  # paths as relative as they can be: papermill records them
+                os.path.relpath(NOTEBOOKS / name),
+                os.path.relpath(executed_dir / name),
                 parameters=params,
                 kernel_name=kernel,
                 cwd=str(NOTEBOOKS),
