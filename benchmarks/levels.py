@@ -1,6 +1,7 @@
 """Per-level health of a trained model's hierarchy: input scale, giant faces, attention at boundaries.
 
     python benchmarks/levels.py results/validation/runs/<key>.json [...] [--with priority=weighted] [--out levels.csv]
+                                [--render hierarchy.png]
 
 Each argument is a stored validation cell (:mod:`anseg.validate`): its model
 (``results/validation/models/<training_key>.pt``) is run on the cell's
@@ -42,16 +43,24 @@ GIANT_FACTOR = 8
 BAND_RINGS = 2
 
 
-def level_statistics(item, model: Segmenter, config) -> list[dict]:
-    """The statistics of every level of one mesh's hierarchy (module docstring)."""
+def hierarchy(item, model: Segmenter, config) -> tuple[list, list[np.ndarray]]:
+    """The levels of one mesh's hierarchy, and for each the number of input faces every face stands for."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CollapseWarning)
         levels = build_levels(item.mesh, model, config)
+    records = [level.record for level in levels[:-1]]
+    stands_for = [np.bincount(compose(records[:i]), minlength=level.mesh.n_faces) if i else np.ones(level.mesh.n_faces, int)
+                  for i, level in enumerate(levels)]
+    return levels, stands_for
+
+
+def level_statistics(item, model: Segmenter, config) -> list[dict]:
+    """The statistics of every level of one mesh's hierarchy (module docstring)."""
+    levels, counts = hierarchy(item, model, config)
     rows, records = [], []
-    for index, level in enumerate(levels):
+    for index, (level, stands_for) in enumerate(zip(levels, counts)):
         raw = level.feature_matrix(index, len(levels), config.local_scale)
         largest = np.abs(model.standardize(raw)).max(axis=1)
-        stands_for = np.bincount(compose(records), minlength=level.mesh.n_faces) if records else np.ones(level.mesh.n_faces)
         mean = stands_for.sum() / level.mesh.n_faces
         row = {"level": index, "faces": level.mesh.n_faces, "z99": float(np.percentile(largest, 99)),
                "zmax": float(largest.max()), "giant": int(stands_for.max()),
@@ -67,6 +76,21 @@ def level_statistics(item, model: Segmenter, config) -> list[dict]:
     return rows
 
 
+def render_hierarchies(item, model: Segmenter, variants: dict, path: Path) -> None:
+    """Fig. 4-style panel: each hierarchy's levels, faces coloured by log2 of the input faces they stand for."""
+    from anseg import viz
+
+    images, titles = [], []
+    for name, overrides in variants.items():
+        levels, counts = hierarchy(item, model, replace(model.config, **overrides))
+        for index, (level, stands_for) in enumerate(zip(levels, counts)):
+            images.append(viz.render(level.mesh, face_scalars=np.log2(stands_for), cmap="viridis", clim=(0, 10),
+                                     window_size=(360, 360)))
+            titles.append(f"{name}\nlevel {index}: {level.mesh.n_faces} faces, largest {stands_for.max()}")
+    viz.render_panel(images, titles, path, ncols=len(levels), title=f"{item.name} (held-out training mesh)",
+                     colorbar={"cmap": "viridis", "vmin": 0, "vmax": 10, "label": "log2(input faces per face)"})
+
+
 def _mean(values) -> float:
     """The mean of the values that are not NaN (NaN when none is)."""
     values = np.asarray(values, dtype=float)
@@ -79,6 +103,7 @@ def main(argv=None) -> None:
     parser.add_argument("--with", dest="variants", action="append", default=[],
                         help="field=value[,...]: also run the hierarchy with these SegmentConfig overrides")
     parser.add_argument("--out", type=Path, help="also write the rows as CSV")
+    parser.add_argument("--render", type=Path, help="also render the first cell's first held-out mesh's hierarchies (PNG)")
     args = parser.parse_args(argv)
 
     import torch
@@ -98,6 +123,8 @@ def main(argv=None) -> None:
             for index in range(len(per_mesh[0])):
                 values = {k: _mean([rows[index][k] for rows in per_mesh]) for k in per_mesh[0][index] if k != "level"}
                 table.append({"arm": cell["arm"], "category": cell["category"], "hierarchy": name, "level": index, **values})
+        if args.render and path == args.cells[0]:
+            render_hierarchies(held_out[0], model, variants, args.render)
     print(f"{'arm':<16} {'category':<10} {'hierarchy':<18} lvl  faces    z99     zmax   giant  share  auc")
     for r in table:
         print(f"{r['arm']:<16} {r['category']:<10} {r['hierarchy']:<18} {r['level']:>3} {r['faces']:6.0f} {r['z99']:7.1f} "
