@@ -314,12 +314,13 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     return repaired, face_map
 
 
-def labels_for_input_faces(labels, face_map, input_mesh: Mesh) -> np.ndarray:
+def labels_for_input_faces(labels, face_map, input_mesh: Mesh, voters: int = 3) -> np.ndarray:
     """Per-face labels of a repaired mesh carried back to the faces of ``input_mesh`` (the one given to :func:`repair`).
 
-    A face that repair dropped takes the label of the kept face nearest to
+    A face that repair dropped takes a label from the kept faces nearest to
     its centroid: a repeated face its twin's (the same centroid), a
-    degenerate one a neighbour's. No face is left without a label.
+    degenerate one the majority of its ``voters`` nearest (ties to the
+    nearest). No face is left without a label.
     """
     from scipy.spatial import cKDTree
 
@@ -329,8 +330,16 @@ def labels_for_input_faces(labels, face_map, input_mesh: Mesh) -> np.ndarray:
     dropped = np.setdiff1d(np.arange(input_mesh.n_faces), face_map)
     if len(dropped):
         centroids = input_mesh.vertices[input_mesh.faces].mean(axis=1)
-        _, nearest = cKDTree(centroids[face_map]).query(centroids[dropped])
-        out[dropped] = labels[nearest]
+        k = min(voters, len(face_map))
+        distance, nearest = cKDTree(centroids[face_map]).query(centroids[dropped], k=k)
+        distance, nearest = distance.reshape(len(dropped), k), nearest.reshape(len(dropped), k)
+        for row, (face, near, gap) in enumerate(zip(dropped, nearest, distance)):
+            if gap[0] == 0.0:  # a repeated face: its twin
+                out[face] = labels[near[0]]
+                continue
+            values, counts = np.unique(labels[near], return_counts=True)
+            best = values[counts == counts.max()]
+            out[face] = labels[near[0]] if labels[near[0]] in best else best[0]
     return out
 
 

@@ -107,6 +107,13 @@ def test_train_segment_evaluate(tmp_path, monkeypatch):
     assert result.returncode == 0, result.stderr
     labels = np.loadtxt(tmp_path / "fin.txt", dtype=int)
     assert labels.shape == (glued.n_faces,) and labels.min() >= 0
+    from test_mesh import grid_with_a_fin, two_cones_touching_at_their_apex  # an edge of 4 faces; cones at their apex
+
+    for name, broken in (("fins", grid_with_a_fin(2)), ("cones", two_cones_touching_at_their_apex())):
+        save_mesh(tmp_path / f"{name}.off", broken)
+        result = run_cli("segment", model, tmp_path / f"{name}.off", "--repair", "-o", tmp_path / f"{name}.ply")
+        assert result.returncode == 0, result.stderr
+        assert np.loadtxt(tmp_path / f"{name}.txt", dtype=int).shape == (broken.n_faces,)
     # a mesh too small for the model's cycles: segmented, with a one-line warning that says so
     triangle = tmp_path / "triangle.off"
     triangle.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
