@@ -289,7 +289,7 @@ def test_compute_many_keeps_small_jobs_in_this_process(cache_root, monkeypatch):
 
     from anseg import parallel
 
-    monkeypatch.setattr(parallel, "_pooled", no_pool)
+    monkeypatch.setattr(parallel, "_on_loky", no_pool)
     meshes = [blob(), grid_mesh(5)]
     got = features.compute_many(meshes, progress=False, cache=False, **FAST)
     for mesh, x in zip(meshes, got):
