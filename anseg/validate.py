@@ -54,6 +54,7 @@ DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane
 INFERENCE_ONLY = ("smooth_weight", "concave_discount", "combine")
 DEFAULT_OUT = Path("results", "validation")
 BOOTSTRAP_SAMPLES = 10_000
+MIN_CATEGORIES = 3  # fewer give a bootstrap interval that is no interval at all
 
 
 @dataclass(frozen=True)
@@ -278,8 +279,13 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
     lines += [f"{r['arm']:<24} {r['category']:<12} {r['mean']:7.2f} {r['std']:6.2f} {r['runs']:4d}" for r in rows]
     if comparisons:
         lines.append(f"\npaired difference against {baseline!r} (95 % bootstrap over categories, then folds):")
+        if len({r["seed"] for r in results}) == 1:
+            lines.append("  (one seed: the interval leaves out the spread from seed to seed; a screen, not a verdict)")
         for c in comparisons:
-            verdict = "adopt" if c["low"] > 0 else ("worse" if c["high"] < 0 else "no evidence")
+            if c["categories"] < MIN_CATEGORIES:
+                verdict = f"no verdict on fewer than {MIN_CATEGORIES} categories"
+            else:
+                verdict = "adopt" if c["low"] > 0 else ("worse" if c["high"] < 0 else "no evidence")
             lines.append(f"  {c['arm']:<24} {c['mean']:+6.2f} [{c['low']:+6.2f}, {c['high']:+6.2f}] "
                          f"({c['categories']} categories, {c['cells']} cells): {verdict}")
     return "\n".join(lines)

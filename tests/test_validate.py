@@ -68,11 +68,13 @@ def test_report_names_the_verdict(tmp_path):
     results = [{"arm": arm, "category": cat, "fold": f, "seed": 0, "accuracy": {"unit_area": (70 + bonus + f) / 100}}
                for arm, bonus in (("default", 0), ("better", 3)) for cat in ("A", "B") for f in range(3)]
     text = validate.write_report(results, "default", tmp_path, "demo")
-    assert "better" in text and "adopt" in text
+    assert "better" in text and "no verdict on fewer than 3 categories" in text and "one seed" in text
     rows = (tmp_path / "demo_accuracy.csv").read_text().splitlines()
     assert rows[0] == "arm,category,mean,std,runs"
     assert "default,suite mean,71.0000,1.0000,6" in rows  # folds score 70, 71, 72: mean 71, spread 1
     assert (tmp_path / "demo_paired.csv").is_file()
+    more = [{**r, "category": f"{r['category']}{k}"} for r in results for k in range(2)]  # 4 categories
+    assert "adopt" in validate.write_report(more, "default", tmp_path, "demo4")
 
 
 @pytest.mark.slow
