@@ -212,7 +212,8 @@ def test_labels_go_back_to_every_input_face():
 
 
 @pytest.mark.realdata
-def test_a_psb_mesh_with_a_fin_is_repaired_face_for_face(psb_sample):
+@pytest.mark.slow
+def test_a_psb_mesh_with_a_fin_is_repaired_and_segmented_face_for_face(psb_sample):
     mesh = psb_sample["Teddy"][0].mesh
     u, w = mesh.edges[mesh.edge_face_counts == 2][0]
     tip = (mesh.vertices[u] + mesh.vertices[w]) / 2 + 0.05 * np.ptp(mesh.vertices, axis=0).max() * mesh.face_normals[0]
@@ -223,3 +224,17 @@ def test_a_psb_mesh_with_a_fin_is_repaired_face_for_face(psb_sample):
     fixed.validate()
     assert face_map.tolist() == list(range(glued.n_faces))
     np.testing.assert_allclose(fixed.face_areas, glued.face_areas)
+    # and it segments, one label per input face (a tiny model trained on synthetic shapes will do)
+    import torch
+
+    from anseg import datasets
+    from anseg.mesh import labels_for_input_faces
+    from anseg.pipeline import SegmentConfig, segment
+    from anseg.train import TrainConfig, fit
+
+    torch.set_num_threads(1)
+    shapes = datasets.load("synthetic", "figure", "train", n_shapes=4, progress=False)
+    model = fit(shapes[:2], shapes[0].label_names, SegmentConfig(cycles=1, clusters=4), TrainConfig(epochs=1, width=16, depth=1),
+                progress=False)
+    labels = labels_for_input_faces(segment(fixed, model).labels, face_map, glued)
+    assert labels.shape == (glued.n_faces,) and labels.min() >= 0
