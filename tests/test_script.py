@@ -15,7 +15,7 @@ SCRIPT = textwrap.dedent('''
     from anseg.pipeline import SegmentConfig, Segmenter, segment
     from anseg.train import TrainConfig, evaluate, fit
 
-    print("script body ran")  # printed once: a worker that re-imports this file would print it again
+    print("script body ran")
     train = datasets.load("synthetic", "figure", "train", n_shapes=20, progress=False)
     test = datasets.load("synthetic", "figure", "test", n_shapes=20, progress=False)
     assert sum(m.mesh.n_faces for m in train) > features.POOL_MIN_FACES  # so the feature pool really starts
@@ -29,14 +29,20 @@ SCRIPT = textwrap.dedent('''
 ''')
 
 
-@pytest.mark.slow
-def test_a_plain_script_without_main_guard_runs_with_a_cold_cache(tmp_path):
-    (tmp_path / "script.py").write_text(SCRIPT)
+def run_script(tmp_path, text: str) -> str:
+    """Run ``text`` as a plain script (no main guard) with a cold feature cache; its standard output."""
+    (tmp_path / "script.py").write_text(text)
     env = {**os.environ, "ANSEG_CACHE": str(tmp_path / "cache")}
     run = subprocess.run([sys.executable, "script.py"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-2000:]
-    assert run.stdout.count("script body ran") == 1
-    assert "labels" in run.stdout
+    assert run.stdout.count("script body ran") == 1  # a worker that re-ran the script would print it again
+    return run.stdout
+
+
+@pytest.mark.slow
+def test_a_plain_script_without_main_guard_runs_with_a_cold_cache(tmp_path):
+    stdout = run_script(tmp_path, SCRIPT)
+    assert "labels" in stdout
     assert len(list((tmp_path / "cache" / "features").glob("*.npy"))) >= 20
 
 
@@ -56,8 +62,4 @@ PLAN_SCRIPT = textwrap.dedent('''
 
 @pytest.mark.slow
 def test_a_plan_on_a_local_cluster_from_a_plain_script(tmp_path):
-    (tmp_path / "plan.py").write_text(PLAN_SCRIPT)
-    env = {**os.environ, "ANSEG_CACHE": str(tmp_path / "cache")}
-    run = subprocess.run([sys.executable, "plan.py"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0, run.stderr[-2000:]
-    assert run.stdout.count("script body ran") == 1 and "stored 2" in run.stdout
+    assert "stored 2" in run_script(tmp_path, PLAN_SCRIPT)
