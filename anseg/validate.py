@@ -171,11 +171,9 @@ def validation_store(out: str | Path) -> ResultStore:
 
 
 def study_cells(arms, categories, folds: int, use_folds, seeds, epochs=None, dataset="psb", split_index=0, options=()) -> list[Cell]:
-    """Every cell of a study; cells that reuse another's model come after it, so it is trained once."""
-    cells = [Cell(arm, category, fold, seed, folds, epochs, dataset, split_index, tuple(sorted(dict(options).items())))
-             for seed in seeds for fold in use_folds for category in categories for arm in arms]
-    return sorted(cells, key=lambda c: any(c.arm.segment.get(n, getattr(SegmentConfig(), n)) != getattr(SegmentConfig(), n)
-                                           for n in INFERENCE_ONLY))
+    """Every cell of a study, arm by arm inside each category (run_study trains each model once, whatever the order)."""
+    return [Cell(arm, category, fold, seed, folds, epochs, dataset, split_index, tuple(sorted(dict(options).items())))
+            for seed in seeds for fold in use_folds for category in categories for arm in arms]
 
 
 def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, workers: int = 1,

@@ -82,7 +82,7 @@ def test_a_study_stores_its_cells_and_resumes_without_training(tmp_path, monkeyp
     torch.set_num_threads(1)
     arms = [Arm("default", SMALL), Arm("no-cut", {**SMALL, "smooth_weight": 0.0})]
     cells = validate.study_cells(arms, ["figure"], folds=2, use_folds=[0], seeds=[0], epochs=2, **SYNTHETIC)
-    assert [c.arm.name for c in cells] == ["default", "no-cut"]  # the model is trained before it is reused
+    assert [c.arm.name for c in cells] == ["default", "no-cut"]
     fits = []
     real_fit = validate.fit
     monkeypatch.setattr(validate, "fit", lambda *a, **k: fits.append(1) or real_fit(*a, **k))
