@@ -1,8 +1,8 @@
 """The attention network: per-face embedding, patch tokens, a transformer, face attention and class logits.
 
 One mesh per call. Faces come grouped into patches (the transformer's tokens) by a
-layout computed elsewhere: ``patch_of_face`` and ``slot_of_face`` put every face in
-one slot of a ``(n_patches, patch_size)`` grid; unused slots are padding.
+:class:`~anseg.cluster.PatchLayout` computed elsewhere, which puts every face in one
+slot of a ``(n_patches, patch_size)`` grid; unused slots are padding.
 
 Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
 
@@ -57,6 +57,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from anseg.cache import atomic_write
+from anseg.cluster import PatchLayout
 
 # Scores in one chunk of received_attention: 16 MiB of float32, small enough to stay
 # in cache between the passes over it (measured several times faster than 64 MiB at 12.5K tokens).
@@ -164,39 +165,6 @@ class _ReceivedAttention(torch.autograd.Function):
         return grad_q, grad_k, None
 
 
-def to_patches(
-    values: torch.Tensor, patch_of_face: torch.Tensor, slot_of_face: torch.Tensor, n_patches: int, patch_size: int
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Scatter per-face rows (F, ...) into a zero-padded (T, P, ...) grid; also return the (T, P) mask of real slots.
-
-    Checks the layout: every face in range, no two faces in one slot, no empty patch.
-    """
-    n_faces = values.shape[0]
-    if patch_of_face.shape != (n_faces,) or slot_of_face.shape != (n_faces,):
-        raise ValueError(
-            f"patch_of_face {tuple(patch_of_face.shape)} and slot_of_face {tuple(slot_of_face.shape)} "
-            f"must both be ({n_faces},), one entry per face"
-        )
-    if patch_of_face.dtype.is_floating_point or slot_of_face.dtype.is_floating_point:
-        raise ValueError("patch_of_face and slot_of_face must be integer tensors")
-    if n_faces == 0:
-        raise ValueError("no faces: the mesh is empty")
-    for name, index, bound in (("patch_of_face", patch_of_face, n_patches), ("slot_of_face", slot_of_face, patch_size)):
-        low, high = int(index.min()), int(index.max())
-        if low < 0 or high >= bound:
-            raise ValueError(f"{name} must lie in [0, {bound}), got values in [{low}, {high}]")
-    patch_of_face, slot_of_face = patch_of_face.long(), slot_of_face.long()
-    occupancy = torch.bincount(patch_of_face * patch_size + slot_of_face, minlength=n_patches * patch_size)
-    if int(occupancy.max()) > 1:
-        raise ValueError("two faces share one (patch, slot): the layout is not one-to-one")
-    mask = occupancy.view(n_patches, patch_size).bool()
-    if not bool(mask.any(dim=1).all()):
-        raise ValueError(f"{int((~mask.any(dim=1)).sum())} of {n_patches} patches hold no face")
-    grid = values.new_zeros((n_patches, patch_size, *values.shape[1:]))
-    grid[patch_of_face, slot_of_face] = values
-    return grid, mask
-
-
 class SelfAttention(nn.Module):
     """Multi-head self-attention of Eq. 1-4, through scaled_dot_product_attention."""
 
@@ -263,32 +231,25 @@ class AttentionSegmenter(nn.Module):
                 nn.init.zeros_(module.bias)
 
     def forward(
-        self,
-        x: torch.Tensor,
-        patch_of_face: torch.Tensor,
-        slot_of_face: torch.Tensor,
-        n_patches: int,
-        need_attention: bool = True,
-        attention_grad: bool = False,
+        self, x: torch.Tensor, layout: PatchLayout, need_attention: bool = True, attention_grad: bool = False
     ) -> Output:
         """Logits (F, C) and attention (F,) of one mesh's faces.
 
-        ``x``: (F, in_features) features; ``patch_of_face``/``slot_of_face``: (F,) integer
-        tensors or arrays, the position of every face in the (n_patches, patch_size) grid. ``need_attention=False``
-        skips the received-attention pass (as costly as one attention layer) when only
-        the logits are wanted, e.g. in most training steps; ``attention_grad=True`` returns
-        attention with its gradient (see the module docstring).
+        ``x``: (F, in_features) features; ``layout``: where every face sits in the
+        (n_patches, patch_size) token grid (:func:`anseg.cluster.layout`, which
+        checks it once when it is made). ``need_attention=False`` skips the
+        received-attention pass (as costly as one attention layer) when only the
+        logits are wanted, e.g. in most training steps; ``attention_grad=True``
+        returns attention with its gradient (see the module docstring).
         """
         if x.dim() != 2 or x.shape[1] != self.config.in_features:
             raise ValueError(f"x must be (faces, {self.config.in_features}), got {tuple(x.shape)}")
-        # PatchLayout (anseg.cluster) holds numpy arrays; accept them as they are.
-        patch_of_face = torch.as_tensor(patch_of_face, device=x.device)
-        slot_of_face = torch.as_tensor(slot_of_face, device=x.device)
-        grid, mask = to_patches(x, patch_of_face, slot_of_face, n_patches, self.config.patch_size)
-        logits, attention = self.forward_patches(grid, mask, need_attention, attention_grad)
-        patch_of_face, slot_of_face = patch_of_face.long(), slot_of_face.long()
-        face_attention = attention[patch_of_face, slot_of_face] if attention is not None else None
-        return Output(logits[patch_of_face, slot_of_face], face_attention)
+        if layout.n_faces != x.shape[0] or layout.patch_size != self.config.patch_size:
+            raise ValueError(f"the layout places {layout.n_faces} faces in patches of {layout.patch_size}; "
+                             f"x has {x.shape[0]} faces and the model takes patches of {self.config.patch_size}")
+        mask = torch.as_tensor(layout.mask, device=x.device)
+        logits, attention = self.forward_patches(layout.to_tokens(x), mask, need_attention, attention_grad)
+        return Output(layout.to_faces(logits), layout.to_faces(attention) if attention is not None else None)
 
     def forward_patches(
         self, grid: torch.Tensor, mask: torch.Tensor, need_attention: bool = True, attention_grad: bool = False

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
+import numpy as np
 import pytest
 import torch
+
+from anseg.cluster import PatchLayout, patches
 
 from anseg.model import (
     AttentionSegmenter,
@@ -14,16 +18,15 @@ from anseg.model import (
     load,
     received_attention,
     save,
-    to_patches,
 )
 
 
-def random_layout(n_faces: int, patch_size: int, generator: torch.Generator):
-    """Faces in random order, packed into patches; the last patch is partly padding."""
-    order = torch.randperm(n_faces, generator=generator)
-    position = torch.empty(n_faces, dtype=torch.long)
-    position[order] = torch.arange(n_faces)
-    return position // patch_size, position % patch_size, math.ceil(n_faces / patch_size)
+def random_layout(n_faces: int, patch_size: int, generator: torch.Generator, clusters: int = 1) -> PatchLayout:
+    """Faces in random order, cut into patches cluster by cluster; the last patch of a cluster is partly padding."""
+    order = torch.randperm(n_faces, generator=generator).numpy()
+    labels = np.zeros(n_faces, dtype=np.int64)
+    labels[order] = np.arange(n_faces) * clusters // n_faces  # contiguous runs of the sequence
+    return patches(order, labels, patch_size)
 
 
 @pytest.fixture
@@ -33,25 +36,24 @@ def problem():
     torch.manual_seed(0)
     model = AttentionSegmenter(config).eval()
     x = torch.randn(203, 5, generator=g)
-    patch, slot, n_patches = random_layout(203, 8, g)
-    return model, x, patch, slot, n_patches
+    return model, x, random_layout(203, 8, g, clusters=3)
 
 
 def test_shapes_and_attention_normalisation(problem):
-    model, x, patch, slot, n_patches = problem
-    out = model(x, patch, slot, n_patches)
+    model, x, layout = problem
+    out = model(x, layout)
     assert out.logits.shape == (203, 3)
     assert out.attention.shape == (203,)
     assert torch.isfinite(out.logits).all()
     assert torch.isfinite(out.attention).all() and (out.attention > 0).all()
     assert out.attention.mean().item() == pytest.approx(1.0, rel=1e-5)
-    assert model(x, patch, slot, n_patches, need_attention=False).attention is None
+    assert model(x, layout, need_attention=False).attention is None
 
 
 def test_attention_with_gradient_matches_and_trains(problem):
-    model, x, patch, slot, n_patches = problem
-    plain = model(x, patch, slot, n_patches).attention
-    graded = model(x, patch, slot, n_patches, attention_grad=True).attention
+    model, x, layout = problem
+    plain = model(x, layout).attention
+    graded = model(x, layout, attention_grad=True).attention
     assert torch.allclose(plain, graded, rtol=1e-4, atol=1e-6)
     graded[:10].sum().backward()
     assert model.share_score.weight.grad.abs().sum() > 0
@@ -65,7 +67,7 @@ def test_token_attention_is_spread_by_the_learned_share():
     with torch.no_grad():
         model.share_score.weight.normal_(0.0, 1.0)  # the initial scores are all near zero
     x = torch.randn(40, 2)
-    attention = model(x, torch.arange(40) // 4, torch.arange(40) % 4, 10).attention.view(10, 4)
+    attention = model(x, patches(np.arange(40), np.arange(40) // 4, 4)).attention.view(10, 4)
     with torch.no_grad():
         scores = model.share_score(model.embed(x)).view(10, 4)
     expected = torch.softmax(scores, dim=1) * attention.sum(dim=1, keepdim=True)
@@ -104,27 +106,30 @@ def test_received_attention_rejects_bad_input():
 
 
 def test_logits_follow_tokens_not_face_index(problem):
-    model, x, patch, slot, n_patches = problem
-    out = model(x, patch, slot, n_patches)
+    model, x, layout = problem
+    out = model(x, layout)
     perm = torch.randperm(x.shape[0], generator=torch.Generator().manual_seed(3))
-    permuted = model(x[perm], patch[perm], slot[perm], n_patches)
+    inverse = torch.argsort(perm).numpy()
+    moved = replace(layout, order=inverse[layout.order], patch_of_face=layout.patch_of_face[perm.numpy()],
+                    slot_of_face=layout.slot_of_face[perm.numpy()])
+    permuted = model(x[perm], moved)
     torch.testing.assert_close(permuted.logits, out.logits[perm])
     torch.testing.assert_close(permuted.attention, out.attention[perm])
 
 
 def test_context_reaches_other_tokens(problem):
     """Changing one patch's faces changes the logits of faces in other patches (attention mixes tokens)."""
-    model, x, patch, slot, n_patches = problem
-    out = model(x, patch, slot, n_patches)
+    model, x, layout = problem
+    out = model(x, layout)
     changed = x.clone()
-    changed[patch == 0] += 3.0
-    other = patch != 0
-    assert not torch.allclose(model(changed, patch, slot, n_patches).logits[other], out.logits[other])
+    first = torch.as_tensor(layout.patch_of_face == 0)
+    changed[first] += 3.0
+    assert not torch.allclose(model(changed, layout).logits[~first], out.logits[~first])
 
 
 def test_padding_values_are_never_read(problem):
-    model, x, patch, slot, n_patches = problem
-    grid, mask = to_patches(x, patch, slot, n_patches, model.config.patch_size)
+    model, x, layout = problem
+    grid, mask = layout.to_tokens(x), torch.as_tensor(layout.mask)
     assert (~mask).any()
     poisoned = grid.clone()
     poisoned[~mask] = float("nan")
@@ -136,19 +141,19 @@ def test_padding_values_are_never_read(problem):
 
 
 def test_layout_errors_are_explicit(problem):
-    model, x, patch, slot, n_patches = problem
-    with pytest.raises(ValueError, match="one-to-one"):
-        model(x, torch.zeros_like(patch), torch.zeros_like(slot), n_patches)
-    with pytest.raises(ValueError, match="hold no face"):
-        model(x, patch, slot, n_patches + 1)
-    with pytest.raises(ValueError, match="slot_of_face"):
-        model(x, patch, slot + model.config.patch_size, n_patches)
+    model, x, layout = problem
+    with pytest.raises(ValueError, match="places 202 faces"):
+        model(x, random_layout(202, 8, torch.Generator().manual_seed(1)))
+    with pytest.raises(ValueError, match="patches of 4"):
+        model(x, random_layout(203, 4, torch.Generator().manual_seed(1)))
+    with pytest.raises(ValueError, match="every patch needs"):
+        model.forward_patches(layout.to_tokens(x), torch.zeros(layout.mask.shape, dtype=torch.bool))
     with pytest.raises(ValueError, match=r"x must be \(faces, 5\)"):
-        model(x[:, :4], patch, slot, n_patches)
+        model(x[:, :4], layout)
     with pytest.raises(ValueError, match="NaN or inf"):
-        model(torch.where(patch[:, None] == 1, float("inf"), x), patch, slot, n_patches)
+        model(torch.where(torch.as_tensor(layout.patch_of_face == 1)[:, None], float("inf"), x), layout)
     with pytest.raises(ValueError, match="float32"):
-        model(x.double(), patch, slot, n_patches)
+        model(x.double(), layout)
     with pytest.raises(ValueError, match="divisible"):
         ModelConfig(in_features=5, n_classes=2, width=30, heads=4)
 
@@ -177,25 +182,25 @@ def test_overfits_a_small_problem(one_thread):
     g = torch.Generator().manual_seed(5)
     x = torch.randn(500, 4, generator=g)
     labels = (x[:, 0] > 0).long()
-    patch, slot, n_patches = random_layout(500, 16, g)
+    layout = random_layout(500, 16, g)
     model = AttentionSegmenter(ModelConfig(in_features=4, n_classes=2, patch_size=16))
     optimiser = torch.optim.Adam(model.parameters(), lr=1e-3)
     for _ in range(200):
         optimiser.zero_grad()
-        loss = torch.nn.functional.cross_entropy(model(x, patch, slot, n_patches, need_attention=False).logits, labels)
+        loss = torch.nn.functional.cross_entropy(model(x, layout, need_attention=False).logits, labels)
         loss.backward()
         optimiser.step()
     model.eval()
-    accuracy = (model(x, patch, slot, n_patches).logits.argmax(1) == labels).float().mean().item()
+    accuracy = (model(x, layout).logits.argmax(1) == labels).float().mean().item()
     assert accuracy > 0.95
 
 
 def test_save_load_round_trip(problem, tmp_path):
-    model, x, patch, slot, n_patches = problem
+    model, x, layout = problem
     path = save(model, tmp_path / "sub" / "model.pt")
     restored = load(path)
     assert restored.config == model.config
-    a, b = model(x, patch, slot, n_patches), restored(x, patch, slot, n_patches)
+    a, b = model(x, layout), restored(x, layout)
     assert torch.equal(a.logits, b.logits) and torch.equal(a.attention, b.attention)
     assert [p.name for p in path.parent.iterdir()] == ["model.pt"]  # no temporary left behind
 
@@ -212,13 +217,13 @@ def test_depth_zero_is_a_per_face_classifier():
     torch.manual_seed(1)
     model = AttentionSegmenter(ModelConfig(in_features=5, n_classes=3, width=16, depth=0, patch_size=8)).eval()
     x = torch.randn(50, 5, generator=g)
-    patch, slot, n_patches = random_layout(50, 8, g)
-    out = model(x, patch, slot, n_patches)
+    layout = random_layout(50, 8, g)
+    out = model(x, layout)
     other = x.clone()
     other[1:] = torch.randn(49, 5, generator=g)  # every other face changes; face 0's logits must not
-    assert torch.allclose(model(other, patch, slot, n_patches).logits[0], out.logits[0])
+    assert torch.allclose(model(other, layout).logits[0], out.logits[0])
     assert torch.equal(out.attention, torch.ones(50))
     with pytest.raises(ValueError, match="no attention"):
-        model(x, patch, slot, n_patches, attention_grad=True)
+        model(x, layout, attention_grad=True)
     with pytest.raises(ValueError, match="depth"):
         ModelConfig(in_features=5, n_classes=3, depth=-1)
