@@ -224,14 +224,12 @@ def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, n
     return {g: out[g] for g in names}
 
 
-def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, device) -> dict[str, torch.Tensor]:
-    """Standardised features and the patch layout of one level, as tensors for the model."""
+def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, device) -> dict:
+    """The network's arguments for one level: its standardised features (a tensor on ``device``) and its patch layout."""
     x = model.standardize(level.feature_matrix(index, n_levels, model.config.local_scale))
     return {
         "x": torch.as_tensor(x, device=device),
-        "patch_of_face": torch.as_tensor(level.layout.patch_of_face, device=device),
-        "slot_of_face": torch.as_tensor(level.layout.slot_of_face, device=device),
-        "n_patches": level.layout.n_patches,
+        "layout": level.layout,
     }
 
 
@@ -277,6 +275,30 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
                                                     seed=config.seed + index, once_per_pass=config.once_per_pass,
                                                     priority=config.priority)
         current_groups = coarse_groups(level, current, level.record, config.groups)
+    return levels
+
+
+def level_labels(levels: list[Level], labels: np.ndarray, n_classes: int) -> list[np.ndarray]:
+    """The labels of every level: each face takes the area majority of the input faces it stands for.
+
+    Level 0 keeps ``labels``; these are the training targets of the coarse levels.
+    """
+    areas = levels[0].mesh.face_areas
+    return [collapse.pool_labels([lv.record for lv in levels[:index]], labels, areas, n_classes) if index else labels
+            for index in range(len(levels))]
+
+
+def fill_attention(model: Segmenter, levels: list[Level], device="cpu") -> list[Level]:
+    """Give every level its attention: build_levels computes it only where it drives a collapse.
+
+    The coarsest level, and every level of a uniform or random hierarchy, get
+    the model's attention from one forward pass each; returns ``levels``.
+    """
+    model.network.eval()
+    with torch.no_grad():
+        for index, level in enumerate(levels):
+            if level.attention is None:
+                level.attention = model(**model_inputs(model, level, index, len(levels), device)).attention.cpu().numpy()
     return levels
 
 

@@ -53,6 +53,7 @@ from anseg.pipeline import (
     Segmenter,
     build_levels,
     input_groups,
+    level_labels,
     model_inputs,
     segment,
 )
@@ -141,22 +142,19 @@ class _Example:
 
 def _examples(model: Segmenter, mesh, labels, groups, train: TrainConfig, device) -> _Example:
     levels = build_levels(mesh, model, model.config, groups, device)
-    inputs, targets, weights, near_boundary = [], [], [], []
-    areas = mesh.face_areas
     supervise = model.config.mode == "nonuniform" and train.attention_weight > 0
-    for index, level in enumerate(levels):
-        records = [lv.record for lv in levels[:index]]
-        target = collapse.pool_labels(records, labels, areas, model.n_classes) if records else labels
+    example = _Example([], [], [], [])
+    for index, (level, target) in enumerate(zip(levels, level_labels(levels, labels, model.n_classes))):
         area = level.mesh.face_areas
-        inputs.append(model_inputs(model, level, index, len(levels), device))
-        targets.append(torch.as_tensor(target, device=device))
-        weights.append(torch.as_tensor(area / area.sum(), dtype=torch.float32, device=device))
+        example.inputs.append(model_inputs(model, level, index, len(levels), device))
+        example.targets.append(torch.as_tensor(target, device=device))
+        example.weights.append(torch.as_tensor(area / area.sum(), dtype=torch.float32, device=device))
         band = None
         if supervise and index < len(levels) - 1:
             band = torch.as_tensor(collapse.rings_to_other_label(level.mesh, target) <= train.boundary_rings,
                                    dtype=torch.float32, device=device)
-        near_boundary.append(band)
-    return _Example(inputs, targets, weights, near_boundary)
+        example.near_boundary.append(band)
+    return example
 
 
 def _attention_loss(attention: torch.Tensor, near_boundary: torch.Tensor) -> torch.Tensor:

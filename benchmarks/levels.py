@@ -34,9 +34,9 @@ import numpy as np
 from sklearn.metrics import roc_auc_score
 
 from anseg import datasets
-from anseg.collapse import CollapseWarning, compose, pool_labels, rings_to_other_label
+from anseg.collapse import CollapseWarning, compose, rings_to_other_label
 from anseg.configs import parse_overrides
-from anseg.pipeline import Segmenter, build_levels
+from anseg.pipeline import Segmenter, build_levels, level_labels
 from anseg.validate import csv_text
 
 GIANT_FACTOR = 8
@@ -57,8 +57,8 @@ def hierarchy(item, model: Segmenter, config) -> tuple[list, list[np.ndarray]]:
 def level_statistics(item, model: Segmenter, config) -> list[dict]:
     """The statistics of every level of one mesh's hierarchy (module docstring)."""
     levels, counts = hierarchy(item, model, config)
-    rows, records = [], []
-    for index, (level, stands_for) in enumerate(zip(levels, counts)):
+    rows = []
+    for index, (level, stands_for, target) in enumerate(zip(levels, counts, level_labels(levels, item.labels, model.n_classes))):
         raw = level.feature_matrix(index, len(levels), config.local_scale)
         largest = np.abs(model.standardize(raw)).max(axis=1)
         mean = stands_for.sum() / level.mesh.n_faces
@@ -66,13 +66,10 @@ def level_statistics(item, model: Segmenter, config) -> list[dict]:
                "zmax": float(largest.max()), "giant": int(stands_for.max()),
                "giant_share": float(stands_for[stands_for > GIANT_FACTOR * mean].sum() / stands_for.sum()), "auc": np.nan}
         if level.attention is not None:
-            target = pool_labels(records, item.labels, item.mesh.face_areas, model.n_classes) if records else item.labels
             band = rings_to_other_label(level.mesh, target) <= BAND_RINGS
             if 0 < band.sum() < len(band):
                 row["auc"] = float(roc_auc_score(band, level.attention))
         rows.append(row)
-        if level.record is not None:
-            records.append(level.record)
     return rows
 
 

@@ -128,3 +128,20 @@ def test_combine_rules_weigh_the_levels_as_documented(model, shapes):
                 "decay": np.average(per_level, axis=0, weights=[1.0, 0.5, 0.25])}
     for rule, want in expected.items():
         np.testing.assert_allclose(class_probabilities(model, levels, replace(FAST, combine=rule)), want, rtol=1e-5, atol=1e-7)
+
+
+def test_every_level_gets_labels_and_attention(model, shapes):
+    from anseg.pipeline import fill_attention, level_labels
+
+    item = shapes[4]
+    levels = build_levels(item.mesh, model, replace(FAST, mode="uniform"))
+    assert all(level.attention is None for level in levels)  # a uniform collapse asks the model for nothing
+    assert fill_attention(model, levels) is levels
+    assert all(level.attention.shape == (level.mesh.n_faces,) for level in levels)
+    labels = level_labels(levels, item.labels, model.n_classes)
+    assert labels[0] is item.labels and [len(x) for x in labels] == [level.mesh.n_faces for level in levels]
+    # a coarse face takes the area majority of the input faces it stands for: most of the area keeps its label
+    from anseg.collapse import compose
+
+    back = labels[-1][compose([level.record for level in levels[:-1]])]
+    assert item.mesh.face_areas[back == item.labels].sum() > 0.8 * item.mesh.face_areas.sum()
