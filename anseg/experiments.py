@@ -249,33 +249,77 @@ def notebook_settings(epochs: int, seed: int, device: str, smoke: bool) -> tuple
     return shape_options, segment_options, train
 
 
-def _notebook_cells(name: str, p: dict) -> list[tuple]:
-    """(data set, category, split, SegmentConfig options[, TrainConfig options]) of every result notebook ``name`` asks for."""
+@dataclass(frozen=True)
+class PlannedRun:
+    """One run a notebook asks for: the table row it fills (``row``) and what to train.
+
+    ``segment`` and ``train`` override the notebook's SegmentConfig and
+    TrainConfig (:func:`notebook_settings`).
+    """
+
+    row: dict
+    dataset: str
+    category: str | None
+    split: int = 0
+    segment: dict = field(default_factory=dict)
+    train: dict = field(default_factory=dict)
+
+
+def notebook_parameters(name: str, kind: str) -> dict:
+    """The parameters a notebook runs with for a run kind (``output_dir`` aside), ``categories=None`` resolved."""
+    return resolve_categories({**COMMON[kind], **PER_NOTEBOOK[name][kind]})
+
+
+def resolve_categories(p: dict) -> dict:
+    """``categories=None`` means every category of the data set."""
     from anseg import datasets
     from anseg.datasets import synthetic
+
+    if "categories" in p and p["categories"] is None:
+        p = {**p, "categories": list(synthetic.CATEGORIES if p["dataset"] == "synthetic" else datasets.PSB_CATEGORIES)}
+    return p
+
+
+def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
+    """Every run notebook ``name`` asks for with parameters ``p``, in the order its tables list them.
+
+    The one declaration of the plan: the notebooks loop over it and
+    :func:`planned_experiments` trains it.
+    """
+    from anseg import datasets
     from anseg.features import ABLATION_SETS
 
-    dataset = p["dataset"]
-    categories = p.get("categories")
-    if categories is None and "categories" in p:
-        categories = list(synthetic.CATEGORIES if dataset == "synthetic" else datasets.PSB_CATEGORIES)
-    if name == "table1_psb.ipynb":
-        return [(dataset, c, s, {}) for s in p["splits"] for c in categories]  # split by split: each finishes whole
-    if name == "table2_coseg.ipynb":
-        return [(c, None, 0, {}) if c in datasets.DATASETS else (dataset, c, 0, {}) for c in categories]
+    dataset, categories = p["dataset"], resolve_categories(p).get("categories")
+    if name == "table1_psb.ipynb":  # split by split: each finishes whole
+        return [PlannedRun({"category": c, "split": s}, dataset, c, s) for s in p["splits"] for c in categories]
+    if name == "table2_coseg.ipynb":  # a MeshCNN distribution (coseg_aliens, ...) is a data set of its own
+        return [PlannedRun({"set": c}, *((c, None) if c in datasets.DATASETS else (dataset, c))) for c in categories]
     if name == "table3_human.ipynb":
-        return [(dataset, p["category"], 0, {})]
+        return [PlannedRun({}, dataset, p["category"])]
     if name == "table4_ablation.ipynb":
-        return [(dataset, c, 0, *TABLE_IV_ROWS[row]) for c in categories for row in TABLE_IV_ROWS]
+        return [PlannedRun({"category": c, "mode": row}, dataset, c, 0, *TABLE_IV_ROWS[row])
+                for c in categories for row in TABLE_IV_ROWS]
     if name == "fig11_cycles_ratio.ipynb":
-        return [(dataset, c, 0, {"cycles": n, "ratio": r}) for c in categories for r in p["ratios"] for n in p["cycles_list"]]
+        return [PlannedRun({"category": c, "ratio": r, "cycles": n}, dataset, c, 0, {"cycles": n, "ratio": r})
+                for c in categories for r in p["ratios"] for n in p["cycles_list"]]
     if name == "fig12_features.ipynb":
-        return [(dataset, c, 0, {"groups": g}) for c in categories for g in ABLATION_SETS.values()]
+        return [PlannedRun({"category": c, "features": f}, dataset, c, 0, {"groups": g})
+                for c in categories for f, g in ABLATION_SETS.items()]
     if name == "fig4_attention.ipynb":
-        return [(dataset, p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
+        return [PlannedRun({"mode": m}, dataset, p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
     if name == "explore.ipynb":
-        return [] if p.get("model_path") else [(dataset, p["category"], 0, {})]
+        return [] if p.get("model_path") else [PlannedRun({}, dataset, p["category"])]
     raise ValueError(f"no plan for notebook {name}")
+
+
+def planned_experiment(run: PlannedRun, epochs: int, seed: int, device: str, smoke: bool) -> tuple[Experiment, dict]:
+    """The Experiment of a planned run under a notebook's settings, and its data set options."""
+    from dataclasses import replace
+
+    shape_options, segment_options, train = notebook_settings(epochs, seed, device, smoke)
+    experiment = Experiment(run.dataset, run.category, run.split, SegmentConfig(**{**segment_options, **run.segment}),
+                            replace(train, **run.train))
+    return experiment, (shape_options if run.dataset == "synthetic" else {})
 
 
 def planned_experiments(kind: str, only: list[str] | None = None) -> list[tuple[Experiment, dict]]:
@@ -283,18 +327,13 @@ def planned_experiments(kind: str, only: list[str] | None = None) -> list[tuple[
 
     In notebook order, and inside a notebook the costliest runs first.
     """
-    from dataclasses import replace
-
     plan = {}
     for name in selected_notebooks(only):
-        p = {**COMMON[kind], **PER_NOTEBOOK[name][kind]}
-        shape_options, segment_options, train = notebook_settings(p["epochs"], p["seed"], p["device"], p["smoke"])
+        p = notebook_parameters(name, kind)
         # costliest first: attention-driven runs collapse every few epochs, "none" never does
-        cells = sorted(_notebook_cells(name, p), key=lambda cell: DOWNSAMPLING_MODES.index(cell[3].get("mode", "nonuniform")))
-        for data, category, split, options, *train_options in cells:
-            settings = replace(train, **(train_options[0] if train_options else {}))
-            experiment = Experiment(data, category, split, SegmentConfig(**{**segment_options, **options}), settings)
-            extra = shape_options if data == "synthetic" else {}
+        runs = sorted(notebook_runs(name, p), key=lambda run: DOWNSAMPLING_MODES.index(run.segment.get("mode", "nonuniform")))
+        for run in runs:
+            experiment, extra = planned_experiment(run, p["epochs"], p["seed"], p["device"], p["smoke"])
             plan.setdefault(experiment.key(extra), (experiment, extra))
     return list(plan.values())
 

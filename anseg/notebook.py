@@ -1,0 +1,162 @@
+"""What every notebook shares, in one call: ``nb = start("table1_psb", globals())``.
+
+A notebook's parameter cell (papermill fills it in) defines its parameters;
+:func:`start` reads them from the notebook's namespace, makes the output
+folders, says plainly when the data is synthetic, prints the run record and
+returns a :class:`NotebookRun`. That object gives the notebook its planned
+runs (the one declaration in :func:`anseg.experiments.notebook_runs`) with
+their stored or freshly trained results, their models and test meshes; its
+:meth:`~NotebookRun.finish` writes the record, wall time included, beside
+the notebook's results.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+from anseg.experiments import (
+    COMMON,
+    PER_NOTEBOOK,
+    REPO,
+    PlannedRun,
+    environment,
+    notebook_runs,
+    notebook_settings,
+    planned_experiment,
+    resolve_categories,
+    run_experiment,
+)
+from anseg.pipeline import SegmentConfig, Segmenter
+
+SYNTHETIC_NOTICE = (
+    "**Synthetic data: a check that this notebook runs, not a reproduction.** {smoke}"
+    "The paper has no numbers for these shapes, so none are set beside ours. "
+    "`python -m anseg.reproduce --data real` runs the benchmark."
+)
+
+
+def percent(accuracy: dict) -> dict:
+    """The readings of Eq. 5 in a result (unit_area, raw_area, faces), in percent."""
+    return {reading: 100 * value for reading, value in accuracy.items()}
+
+
+class NotebookRun:
+    """One execution of one notebook: its parameters, settings, planned runs, outputs and record."""
+
+    def __init__(self, name: str, parameters: dict):
+        if f"{name}.ipynb" not in PER_NOTEBOOK:
+            raise ValueError(f"no notebook {name!r} in the plan; known: {', '.join(sorted(PER_NOTEBOOK))}")
+        self.name = name
+        self.started = time.time()  # the wall time of the record counts from here
+        self.parameters = resolve_categories(parameters)
+        self.out = Path(parameters["output_dir"])
+        self.results_dir, self.figures_dir = self.out / "results", self.out / "figures"
+        for folder in (self.results_dir, self.figures_dir):
+            folder.mkdir(parents=True, exist_ok=True)
+        p = self.parameters
+        self.synthetic, self.smoke = p["dataset"] == "synthetic", p["smoke"]
+        self.shape_options, self.segment_options, self.train = notebook_settings(p["epochs"], p["seed"], p["device"], p["smoke"])
+        self.planned = notebook_runs(f"{name}.ipynb", p)
+        self.record = self._record(parameters)
+
+    def result(self, run: PlannedRun) -> dict:
+        """The stored result of a planned run, or a fresh one trained and evaluated here (and stored)."""
+        p = self.parameters
+        experiment, options = planned_experiment(run, p["epochs"], p["seed"], p["device"], p["smoke"])
+        return run_experiment(experiment, out_dir=self.out, progress=False, **options)
+
+    def results(self) -> list[tuple[PlannedRun, dict]]:
+        """Every planned run with its result, in the plan's order."""
+        return [(run, self.result(run)) for run in self.planned]
+
+    def has_model(self, result: dict) -> bool:
+        """Whether the model of a result is on this machine (a result store can travel without its models)."""
+        return (self.out / "models" / f"{result['key']}.pt").is_file()
+
+    def load_model(self, result: dict) -> Segmenter:
+        """The model trained for ``result``, on the CPU (enough to segment a few meshes)."""
+        return Segmenter.load(self.out / "models" / f"{result['key']}.pt")
+
+    def test_meshes(self, dataset: str, category: str | None, split: int = 0) -> list:
+        from anseg import datasets
+
+        return datasets.load(dataset, category, "test", split, **(self.shape_options if dataset == "synthetic" else {}))
+
+    def notice(self) -> str | None:
+        """What a reader must know first about this run's data, or None."""
+        if not self.synthetic:
+            return None
+        smoke = (f"Smoke settings (4 shapes, a tiny model, {self.parameters['epochs']} epochs): the numbers below mean "
+                 "nothing. ") if self.smoke else ""
+        return SYNTHETIC_NOTICE.format(smoke=smoke)
+
+    def finish(self) -> Path:
+        """Write the run record with its wall time to ``results/<notebook>.json``; returns its path."""
+        self.record["wall_seconds"] = round(time.time() - self.started, 1)
+        path = self.results_dir / f"{self.name}.json"
+        path.write_text(json.dumps(self.record, indent=1, default=str))
+        print(f"{self.name}: {self.record['wall_seconds']:.0f} s wall time; record written to {path}")
+        return path
+
+    def _record(self, parameters: dict) -> dict:
+        import matplotlib
+        import pandas
+
+        import anseg
+
+        return {
+            "notebook": self.name,
+            "parameters": parameters,
+            "data": [self._data_record(name) for name in sorted({run.dataset for run in self.planned})],
+            "seeds": {"training": self.train.seed, "clustering_and_collapse": SegmentConfig().seed},
+            "settings": {"segment_overrides": self.segment_options, "train": vars(self.train),
+                         "synthetic_shapes": self.shape_options},
+            "versions": {"anseg": anseg.__version__, "pandas": pandas.__version__, "matplotlib": matplotlib.__version__},
+            "environment": environment(),
+        }
+
+    def _data_record(self, name: str) -> dict:
+        """Where the data comes from: the generator's settings, or the data folder and the archives' sha256."""
+        from anseg import datasets
+        from anseg.datasets import synthetic
+        from anseg.datasets.archive import KNOWN_ARCHIVES
+
+        if name == "synthetic":
+            return {"dataset": name, "location": "generated in memory by anseg.datasets.synthetic",
+                    "n_shapes": self.shape_options.get("n_shapes", synthetic.N_SHAPES),
+                    "generator_seed": synthetic.DEFAULT_SEED}
+        root = datasets.data_root()
+        return {"dataset": name, "data_root": os.path.relpath(root, REPO),  # relative: the same on every machine
+                "archives_found (sha256 checked on read)": {a: h for a, h in KNOWN_ARCHIVES.items() if (root / a).is_file()},
+                "extracted_folders_found (read as they are)": sorted(p.name for p in root.iterdir() if p.is_dir())}
+
+
+def start(name: str, namespace: dict) -> NotebookRun:
+    """Set up notebook ``name`` from the parameters its parameter cell left in ``namespace`` (its ``globals()``).
+
+    Shows the synthetic-data notice where it applies and prints the run
+    record (data, seeds, settings, versions, hardware).
+    """
+    import warnings
+
+    from tqdm import TqdmWarning
+
+    warnings.filterwarnings("ignore", category=TqdmWarning)  # without ipywidgets, tqdm's text bars are fine
+    names = set(COMMON["real"]) | set(PER_NOTEBOOK[f"{name}.ipynb"]["real"]) | {"output_dir"}
+    missing = sorted(names - set(namespace))
+    if missing:
+        raise ValueError(f"{name}: the parameter cell does not define {', '.join(missing)}")
+    run = NotebookRun(name, {key: namespace[key] for key in sorted(names)})
+    if (notice := run.notice()) is not None:
+        from IPython import get_ipython
+        from IPython.display import Markdown, display
+
+        if get_ipython() is not None:
+            display(Markdown(notice))
+        else:  # a plain script: text, not an object's repr
+            print(notice)
+    print(json.dumps(run.record, indent=1, default=str))
+    return run

@@ -1,0 +1,60 @@
+"""anseg.notebook: the one call that sets a notebook up, its planned runs and its run record."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from anseg.experiments import COMMON, PER_NOTEBOOK, notebook_runs
+from anseg.notebook import NotebookRun, percent, start
+
+
+def smoke_parameters(name: str, out) -> dict:
+    return {**COMMON["smoke"], **PER_NOTEBOOK[f"{name}.ipynb"]["smoke"], "output_dir": str(out)}
+
+
+def test_start_reads_the_parameter_cell_and_records_the_run(tmp_path, capsys):
+    namespace = {**smoke_parameters("table4_ablation", tmp_path), "unrelated": 1}
+    nb = start("table4_ablation", namespace)
+    assert nb.results_dir.is_dir() and nb.figures_dir.is_dir()
+    assert nb.record["parameters"] == smoke_parameters("table4_ablation", tmp_path)
+    assert [d["dataset"] for d in nb.record["data"]] == ["synthetic"]
+    assert "Synthetic data" in nb.notice() and "Smoke settings" in nb.notice()
+    printed = capsys.readouterr().out
+    assert printed.startswith("**Synthetic data")  # outside a notebook the notice is printed, then the record
+    assert json.loads(printed[printed.index("{"):])["notebook"] == "table4_ablation"
+    # the planned runs are the plan's, not a loop of the notebook's own
+    assert nb.planned == notebook_runs("table4_ablation.ipynb", nb.parameters)
+    assert {run.row["mode"] for run in nb.planned} == {"nonuniform", "uniform", "none", "none, transformer"}
+    path = nb.finish()
+    assert json.loads(path.read_text())["wall_seconds"] >= 0
+
+
+def test_start_names_a_missing_parameter_and_an_unknown_notebook(tmp_path):
+    namespace = smoke_parameters("table1_psb", tmp_path)
+    del namespace["splits"]
+    with pytest.raises(ValueError, match="does not define splits"):
+        start("table1_psb", namespace)
+    with pytest.raises(ValueError, match="no notebook 'table9'"):
+        NotebookRun("table9", namespace)
+
+
+def test_the_recorded_data_follows_the_plan(tmp_path):
+    """explore.ipynb with a user's mesh and model trains nothing and reads no data set."""
+    parameters = {**smoke_parameters("explore", tmp_path), "mesh_path": "m.off", "model_path": "m.pt"}
+    nb = NotebookRun("explore", parameters)
+    assert nb.planned == [] and nb.record["data"] == []
+
+
+def test_real_categories_none_means_every_psb_category(tmp_path):
+    from anseg import datasets
+
+    parameters = {**COMMON["real"], **PER_NOTEBOOK["table1_psb.ipynb"]["real"], "output_dir": str(tmp_path)}
+    runs = notebook_runs("table1_psb.ipynb", parameters)
+    assert len(runs) == len(datasets.PSB_CATEGORIES) * len(parameters["splits"])
+    assert runs[0].row == {"category": datasets.PSB_CATEGORIES[0], "split": 0}
+
+
+def test_percent():
+    assert percent({"unit_area": 0.5, "faces": 0.25}) == {"unit_area": 50.0, "faces": 25.0}
