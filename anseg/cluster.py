@@ -185,11 +185,6 @@ class PatchLayout:
         return len(self.order)
 
     @property
-    def cluster_of_face(self) -> np.ndarray:
-        """(F,) the cluster label of every face."""
-        return self.patch_cluster[self.patch_of_face]
-
-    @property
     def flat_slot(self) -> np.ndarray:
         """(F,) each face's row in the tokens flattened to (n_patches * patch_size, ...)."""
         return self.patch_of_face * self.patch_size + self.slot_of_face

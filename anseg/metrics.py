@@ -37,12 +37,6 @@ def accuracy(predicted, truth, face_areas) -> float:
     return float(face_areas[predicted == truth].sum() / face_areas.sum())
 
 
-def face_accuracy(predicted, truth) -> float:
-    """The plain fraction of faces whose label is right."""
-    predicted, truth, _ = _check(predicted, truth)
-    return float((predicted == truth).mean())
-
-
 def pooled_accuracy(
     predicted: Sequence[np.ndarray], truth: Sequence[np.ndarray], face_areas: Sequence[np.ndarray]
 ) -> dict[str, float]:

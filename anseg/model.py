@@ -303,11 +303,6 @@ class AttentionSegmenter(nn.Module):
         return torch.cat([angles.sin(), angles.cos()], dim=1)
 
 
-def count_parameters(model: nn.Module) -> int:
-    """Number of trainable parameters."""
-    return sum(p.numel() for p in model.parameters() if p.requires_grad)
-
-
 def save(model: AttentionSegmenter, path: str | os.PathLike) -> Path:
     """Write the model's config and weights to ``path`` atomically."""
     payload = {"config": asdict(model.config), "state_dict": model.state_dict()}

@@ -148,7 +148,7 @@ def test_patches_cover_every_face_once_and_stay_in_one_cluster(sphere_layout):
     assert lay.mask.shape == (lay.n_patches, 16)
     slots = lay.patch_of_face * lay.patch_size + lay.slot_of_face
     assert len(np.unique(slots)) == mesh.n_faces
-    sizes = np.bincount(lay.cluster_of_face)
+    sizes = np.bincount(lay.patch_cluster[lay.patch_of_face])
     assert lay.n_patches == int(np.ceil(sizes / 16).sum())  # exactly the patches that non-straddling needs
     # slots fill from the front, so padding sits only at the end of a cluster's last patch
     assert (np.diff(lay.mask.astype(int), axis=1) <= 0).all()
@@ -160,7 +160,7 @@ def test_tokens_hold_the_sequence_in_order(sphere_layout):
     tokens = lay.to_tokens(np.arange(mesh.n_faces), fill=-1)
     assert np.array_equal(tokens[lay.mask], lay.order)
     assert (tokens[~lay.mask] == -1).all()
-    cluster_tokens = lay.to_tokens(lay.cluster_of_face, fill=-1)
+    cluster_tokens = lay.to_tokens(lay.patch_cluster[lay.patch_of_face], fill=-1)
     assert all(set(row[row >= 0].tolist()) == {c} for row, c in zip(cluster_tokens, lay.patch_cluster))
 
 

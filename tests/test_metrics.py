@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from anseg.metrics import accuracy, confusion_matrix, face_accuracy, pooled_accuracy
+from anseg.metrics import accuracy, confusion_matrix, pooled_accuracy
 
 
 def test_accuracy_weights_by_area():
@@ -11,7 +11,6 @@ def test_accuracy_weights_by_area():
     pred = np.array([0, 1, 1, 1])
     areas = np.array([1.0, 3.0, 1.0, 1.0])
     assert accuracy(pred, truth, areas) == pytest.approx(3 / 6)
-    assert face_accuracy(pred, truth) == pytest.approx(3 / 4)
 
 
 def test_pooled_readings_differ_as_documented():
