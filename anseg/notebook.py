@@ -145,11 +145,11 @@ def start(name: str, namespace: dict) -> NotebookRun:
     from tqdm import TqdmWarning
 
     warnings.filterwarnings("ignore", category=TqdmWarning)  # without ipywidgets, tqdm's text bars are fine
-    names = set(COMMON["real"]) | set(PER_NOTEBOOK[f"{name}.ipynb"]["real"]) | {"output_dir"}
-    missing = sorted(names - set(namespace))
+    names = [*COMMON["real"], *PER_NOTEBOOK.get(f"{name}.ipynb", {}).get("real", {}), "output_dir"]  # the cell's order
+    missing = [key for key in names if key not in namespace]
     if missing:
         raise ValueError(f"{name}: the parameter cell does not define {', '.join(missing)}")
-    run = NotebookRun(name, {key: namespace[key] for key in sorted(names)})
+    run = NotebookRun(name, {key: namespace[key] for key in names})
     if (notice := run.notice()) is not None:
         from IPython import get_ipython
         from IPython.display import Markdown, display
