@@ -78,6 +78,11 @@ class NotebookRun:
 
     def load_model(self, result: dict) -> Segmenter:
         """The model trained for ``result``, on the CPU (enough to segment a few meshes)."""
+        if not self.has_model(result):
+            raise FileNotFoundError(
+                f"the model of run {result['key']} is not on this machine (a result store travels without its models): "
+                f"copy it to {self.out / 'models'}, or delete {self.out / 'results' / 'runs' / (result['key'] + '.json')} "
+                "to train it here")
         return Segmenter.load(self.out / "models" / f"{result['key']}.pt")
 
     def test_meshes(self, dataset: str, category: str | None, split: int = 0) -> list:

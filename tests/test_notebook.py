@@ -27,6 +27,8 @@ def test_start_reads_the_parameter_cell_and_records_the_run(tmp_path, capsys):
     # the planned runs are the plan's, not a loop of the notebook's own
     assert nb.planned == notebook_runs("table4_ablation.ipynb", nb.parameters)
     assert {run.row["mode"] for run in nb.planned} == {"nonuniform", "uniform", "none", "none, transformer"}
+    with pytest.raises(FileNotFoundError, match="not on this machine"):
+        nb.load_model({"key": "0123456789abcdef"})
     path = nb.finish()
     assert json.loads(path.read_text())["wall_seconds"] >= 0
 
