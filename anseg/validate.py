@@ -206,7 +206,12 @@ def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, worke
                 continue
             result, model = outcome
             results[result["key"]] = store.put(result, model, model_key=result["training_key"])
-    return [results[c.key()] for c in cells if results[c.key()] is not None]
+    return [_named(results[c.key()], c) for c in cells if results[c.key()] is not None]
+
+
+def _named(result: dict, cell: Cell) -> dict:
+    """A stored result under the arm name of this study: a cell's key holds its settings, not the name it ran under."""
+    return {**result, "arm": cell.arm.name}
 
 
 def accuracy_table(results: list[dict]) -> dict[tuple[str, str, int, int], float]:
@@ -303,7 +308,7 @@ def csv_text(rows: list[dict]) -> str:
 def read_results(out: str | Path, cells: list[Cell]) -> list[dict]:
     """The stored results of those cells that have one."""
     store = validation_store(out)
-    return [r for r in (store.get(cell.key()) for cell in cells) if r is not None]
+    return [_named(r, cell) for r, cell in ((store.get(cell.key()), cell) for cell in cells) if r is not None]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -130,3 +130,13 @@ class _Stub:
 def _scores(meshes):
     score = {"unit_area": 0.5, "raw_area": 0.5, "faces": 0.5}
     return {"smoothed": score, "unsmoothed": score, "per_mesh": [{"name": m.name} for m in meshes]}
+
+
+def test_a_stored_cell_reads_back_under_the_arm_name_of_the_study(tmp_path, monkeypatch):
+    """The key holds an arm's settings, not its name: a later study may call the same settings otherwise."""
+    cell = validate.study_cells([Arm("first", SMALL)], ["figure"], folds=2, use_folds=[0], seeds=[0], epochs=2, **SYNTHETIC)[0]
+    validate.validation_store(tmp_path).put({"key": cell.key(), "arm": "first", "trained": True})
+    renamed = validate.study_cells([Arm("renamed", SMALL)], ["figure"], folds=2, use_folds=[0], seeds=[0], epochs=2,
+                                   **SYNTHETIC)
+    assert [r["arm"] for r in validate.read_results(tmp_path, renamed)] == ["renamed"]
+    assert [r["arm"] for r in validate.run_study(renamed, tmp_path, progress=False)] == ["renamed"]
