@@ -200,7 +200,7 @@ def cache_root(tmp_path, monkeypatch):
     return tmp_path / "features"
 
 
-def test_diffusion_by_conjugate_gradients_matches_a_direct_solve(monkeypatch):
+def test_diffusion_by_multigrid_cg_matches_a_direct_solve(monkeypatch):
     import igl
     from scipy.sparse.linalg import spsolve
 
@@ -217,6 +217,23 @@ def test_diffusion_by_conjugate_gradients_matches_a_direct_solve(monkeypatch):
     for radius, block in zip([0.05, 0.3], got):
         direct = spsolve((mass - radius**2 / 4 * laplacian).tocsc(), rhs)[mesh.faces].mean(axis=1)
         np.testing.assert_allclose(block, direct, rtol=1e-7, atol=1e-9)
+
+
+def test_agd_of_a_large_mesh_comes_from_its_collapse_and_keys_its_own_cache_entry(cache_root, monkeypatch):
+    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
+    mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
+    settings = features.FeatureSettings(**FAST)
+    direct = features.compute_groups(mesh, ["agd"], **FAST)["agd"]
+    path, small_path = features._cache_path(mesh, ("agd",), settings), features._cache_path(blob(), ("agd",), settings)
+    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
+    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+    proxy = features.compute_groups(mesh, ["agd"], **FAST)["agd"]
+    assert not np.array_equal(proxy, direct)
+    assert np.corrcoef(proxy[:, 0], direct[:, 0])[0, 1] > 0.99
+    assert np.median(np.abs(proxy[:, 0] / direct[:, 0] - 1)) < 0.05
+    assert features._cache_path(mesh, ("agd",), settings) != path
+    assert blob().n_faces <= 4000  # under the threshold nothing changes, the cache entry included
+    assert features._cache_path(blob(), ("agd",), settings) == small_path
 
 
 def test_second_call_reads_the_cache(cache_root, monkeypatch):
@@ -366,3 +383,11 @@ def test_ray_caster_on_a_single_triangle():
     np.testing.assert_array_equal(face, [0, 0, -1, -1])
     np.testing.assert_allclose(t[:2], [1.0, 2.0])
     assert np.isinf(t[2:]).all()
+
+
+def test_sdf_of_a_large_mesh_through_embree_matches_our_ray_caster(monkeypatch):
+    mesh = blob()
+    ours = features.compute_groups(mesh, ["sdf"], **FAST)["sdf"]
+    monkeypatch.setattr(features, "LARGE_MESH_FACES", mesh.n_faces - 1)
+    embree = features.compute_groups(mesh, ["sdf"], **FAST)["sdf"]
+    np.testing.assert_allclose(embree[:, 0], ours[:, 0], rtol=1e-4)
