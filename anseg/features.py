@@ -654,7 +654,6 @@ def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -
     rounding of the stored features).
     """
     import igl
-    import pyamg
     from scipy.sparse.linalg import splu
 
     v, f = mesh.vertices, mesh.faces
@@ -672,6 +671,8 @@ def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -
             factor = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
             out.append(factor.solve(weighted)[f].mean(axis=1))
             continue
+        import pyamg  # here: small meshes, and the GPU machine that trains on them, need no pyamg
+
         multigrid = pyamg.smoothed_aggregation_solver(system, symmetry="symmetric")
         for column in range(weighted.shape[1]):
             residuals = []
