@@ -1,11 +1,11 @@
-"""Seconds per feature group and peak memory, for meshes from 5K to 100K faces.
+"""Seconds per feature group and peak memory, 5K to 500K faces, beside a reference revision of the code.
 
-    python benchmarks/features.py [--data ROOT] [--repeats 3] [--studies]
+    python benchmarks/features.py [--data ROOT] [--repeats 1] [--reference REV] [--reference-max 100000] [--studies]
 
 The meshes: the PSB meshes (``LabeledDB_new`` under ROOT, else under
 ``$ANSEG_DATA``; an archive there is extracted once into the anseg cache)
 whose face counts are nearest 5K, 10K and 25K, and ``igl.upsample`` copies
-(each face split in four) of the 12.5K and 25K ones for 50K and 100K.
+of PSB meshes (each face split in four, once or twice) for 50K to 500K.
 
 Each mesh runs in a fresh process, so that its peak memory is its own:
 ``peak`` is that process's ``ru_maxrss`` (resident set size, everything
@@ -14,11 +14,18 @@ just before the features were computed (imports done, mesh loaded, a small
 warm-up mesh computed). Times are wall-clock seconds, the best of
 ``--repeats`` runs, each group timed alone through the public
 ``compute_groups`` (so each includes its share of the common preparation:
-the unit-area copy, and the edge table for gc); ``default``
-is ``compute`` of DEFAULT_GROUPS with the cache off, the figure the 2 s
-target is about; ``+smooth`` what adding the optional ``smooth`` group to
-them costs on top (its inputs, sdf, gc and agd, are shared). ``--studies`` adds the
-accuracy-vs-cost tables that chose the AGD source count and the SDF ray count.
+the unit-area copy, and the edge table for gc; ``smooth`` alone includes its
+inputs sdf, gc and agd); ``default`` is ``compute`` of every group
+``SegmentConfig`` uses by default, with the cache off.
+
+The same meshes up to ``--reference-max`` faces are also measured with the
+code of ``--reference`` (a git revision, checked out into a temporary
+worktree), and each figure is printed beside it as a ratio (reference time
+over ours: above 1 is a speed-up), so a change reads as a ratio measured in
+one run, not as two noisy absolute times. The last table fits, per group,
+the slope of log seconds against log faces (the scaling exponent) over the
+meshes of at least 25K faces. ``--studies`` adds the accuracy-vs-cost tables
+that chose the AGD source count and the SDF ray count.
 """
 
 from __future__ import annotations
@@ -26,13 +33,19 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import resource
+import subprocess
+import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-TIMED_GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd")
+TIMED_GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd", "smooth")
+REPO = Path(__file__).resolve().parent.parent
+# (target faces of the PSB mesh, times it is split in four): 5K .. 500K faces
+PLAN = [(5_000, 0), (10_000, 0), (25_000, 0), (12_500, 1), (25_000, 1), (12_500, 2), (19_000, 2), (31_000, 2)]
 
 
 def psb_folder(data: str | None) -> Path:
@@ -71,14 +84,21 @@ def best_time(fn, repeats: int) -> float:
     return best
 
 
-def measure(path: str, upsample: int, repeats: int) -> dict:
-    """Runs in a fresh process: time every group on one mesh, then the peak memory of the default set."""
+def measure(path: str, upsample: int, repeats: int, code: str | None = None) -> dict:
+    """Runs in a fresh process: time every group on one mesh, then the peak memory of the default set.
+
+    ``code``: a checkout whose ``anseg`` is imported instead of this one's.
+    """
+    if code is not None:
+        sys.path.insert(0, code)
     import igl
     import trimesh
 
     from anseg import features, load_mesh
     from anseg.mesh import Mesh
+    from anseg.pipeline import SegmentConfig
 
+    groups = SegmentConfig().groups
     warm = trimesh.creation.icosphere(subdivisions=2)
     features.compute(Mesh(warm.vertices, warm.faces), features.GROUPS, cache=False)  # imports, first calls
     mesh = load_mesh(path)
@@ -87,28 +107,46 @@ def measure(path: str, upsample: int, repeats: int) -> dict:
         mesh = Mesh(vertices, faces)
     mesh.validate()
     before = rss_mib()
-    default = best_time(lambda: features.compute(mesh, cache=False), repeats)
+    default = best_time(lambda: features.compute(mesh, groups, cache=False), repeats)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     row = {"faces": mesh.n_faces, "default": default, "peak": peak, "grown": peak - before}
     for group in TIMED_GROUPS:
         row[group] = best_time(lambda: features.compute_groups(mesh, [group]), repeats)
-    with_smooth = best_time(lambda: features.compute(mesh, (*features.DEFAULT_GROUPS, "smooth"), cache=False), repeats)
-    row["+smooth"] = with_smooth - default
     return row
 
 
-def table(rows: list[tuple[str, dict]]) -> str:
-    columns = ["faces", *TIMED_GROUPS, "default", "+smooth", "peak", "grown"]
-    heads = ["mesh", "faces", *TIMED_GROUPS, "default", "+smooth", "peak MiB", "+mem MiB"]
+def run_fresh(path: Path, upsample: int, repeats: int, code: str | None = None) -> dict:
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return pool.submit(measure, str(path), upsample, repeats, code).result()
+
+
+def table(rows: list[tuple[str, dict, dict | None]]) -> str:
+    """One line a mesh: each figure, and beside it the reference's time over ours where there is one."""
+    columns = [*TIMED_GROUPS, "default"]
+    heads = ["mesh", "faces", *columns, "peak MiB", "+mem MiB"]
     lines = []
-    for name, row in rows:
+    for name, row, reference in rows:
         cells = [name, f"{row['faces']:,}"]
-        cells += [f"{row[c]:.3f}" for c in columns[1:-2]]
-        cells += [f"{row['peak']:.0f}", f"{row['grown']:.0f}"]
+        for c in columns:
+            ratio = f" ({reference[c] / row[c]:.1f}x)" if reference else ""
+            cells.append(f"{row[c]:.3f}{ratio}")
+        peak_ratio = f" ({reference['peak'] / row['peak']:.2f}x)" if reference else ""
+        cells += [f"{row['peak']:.0f}{peak_ratio}", f"{row['grown']:.0f}"]
         lines.append(cells)
     widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(heads)]
     fmt = "  ".join(f"{{:<{w}}}" if i == 0 else f"{{:>{w}}}" for i, w in enumerate(widths))
     return "\n".join([fmt.format(*heads), fmt.format(*("-" * w for w in widths)), *(fmt.format(*line) for line in lines)])
+
+
+def exponents(rows: list[tuple[str, dict, dict | None]], smallest: int = 25_000) -> str:
+    """The slope of log seconds on log faces for every group, over the meshes of at least ``smallest`` faces."""
+    chosen = [row for _, row, _ in rows if row["faces"] >= smallest]
+    faces = np.log([row["faces"] for row in chosen])
+    lines = [f"scaling exponent (slope of log seconds on log faces, {len(chosen)} meshes of {smallest:,} faces or more)"]
+    for c in (*TIMED_GROUPS, "default", "peak"):
+        slope = np.polyfit(faces, np.log([max(row[c], 1e-6) for row in chosen]), 1)[0]
+        lines.append(f"  {c:<8} {slope:5.2f}")
+    return "\n".join(lines)
 
 
 def studies(path: Path) -> None:
@@ -139,24 +177,40 @@ def studies(path: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--data", help="folder holding LabeledDB_new/ or psb_labeled.tar.gz (default: $ANSEG_DATA)")
-    parser.add_argument("--repeats", type=int, default=3, help="runs per measurement; the best is printed")
+    parser.add_argument("--repeats", type=int, default=1, help="runs per measurement; the best is printed (default: 1)")
+    parser.add_argument("--reference", help="git revision whose code is measured beside this one (default: none)")
+    parser.add_argument("--reference-max", type=int, default=100_000,
+                        help="measure the reference on meshes up to this many faces (default: 100000)")
     parser.add_argument("--studies", action="store_true", help="also print the AGD-sources and SDF-rays accuracy studies")
     args = parser.parse_args()
 
     folder = psb_folder(args.data)
     files = {p: face_count(p) for p in sorted(folder.glob("*/*.off"))}
-    plan = [(nearest(files, n), 0) for n in (5_000, 10_000, 25_000)]
-    plan += [(nearest(files, 12_500), 1), (nearest(files, 25_000), 1)]
-    rows = []
-    context = multiprocessing.get_context("spawn")
-    for path, upsample in plan:
-        with ProcessPoolExecutor(1, mp_context=context) as pool:
-            row = pool.submit(measure, str(path), upsample, args.repeats).result()
-        name = f"{path.parent.name}/{path.stem}" + (" x4" if upsample else "")
-        rows.append((name, row))
-        print(f"measured {name}: {row['faces']:,} faces, {row['default']:.2f} s", flush=True)
-    print(f"\nseconds per group (best of {args.repeats}; each group alone), peak = ru_maxrss of a fresh process")
+    with tempfile.TemporaryDirectory() as scratch:
+        code = None
+        if args.reference:
+            code = str(Path(scratch) / "reference")
+            subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", code, args.reference],
+                           check=True, capture_output=True)
+        try:
+            rows = []
+            for target, upsample in PLAN:
+                path = nearest(files, target)
+                row = run_fresh(path, upsample, args.repeats)
+                reference = (run_fresh(path, upsample, args.repeats, code)
+                             if code and row["faces"] <= args.reference_max else None)
+                name = f"{path.parent.name}/{path.stem}" + (f" x{4 ** upsample}" if upsample else "")
+                rows.append((name, row, reference))
+                print(f"measured {name}: {row['faces']:,} faces, default {row['default']:.2f} s"
+                      + (f" (reference {reference['default']:.2f} s)" if reference else ""), flush=True)
+        finally:
+            if code:
+                subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", code], capture_output=True)
+    print(f"\nseconds per group (best of {args.repeats}; each group alone), peak = ru_maxrss of a fresh process"
+          + (f"; in brackets: {args.reference}'s time (peak) over ours, meshes up to {args.reference_max:,} faces"
+             if args.reference else ""))
     print(table(rows))
+    print(exponents(rows))
     if args.studies:
         studies(nearest(files, 25_000))
 
