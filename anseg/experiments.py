@@ -43,6 +43,17 @@ SETTINGS_ADDED_LATER = {
                 "concave_discount": 3.0},
     "train": {"embed_norm": False, "schedule": "constant"},
 }
+# The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
+# from other features has other keys, so no stored result or model is reused across a change of features.
+FEATURES_OF_STORED_RESULTS = {"version": 1, "sdf_rays": 16, "sdf_cone_degrees": 120.0, "agd_sources": 64,
+                              "smooth_radii": (0.03, 0.1, 0.3)}
+
+
+def feature_code() -> dict:
+    """The version of the feature code and its default settings (what the pipeline computes features with)."""
+    from anseg import features
+
+    return {"version": features.FEATURES_VERSION, **asdict(features.FeatureSettings())}
 
 
 @dataclass
@@ -59,10 +70,13 @@ class Experiment:
         """A short hash of everything that decides the result, data set options (e.g. ``n_shapes``) included.
 
         Settings added after results were stored leave the key alone at their
-        default (:data:`SETTINGS_ADDED_LATER`), so those results keep their keys.
+        default (:data:`SETTINGS_ADDED_LATER`), so those results keep their keys;
+        so does the feature code they ran with (:data:`FEATURES_OF_STORED_RESULTS`).
         """
         keyed = {part: {k: v for k, v in asdict(config).items() if SETTINGS_ADDED_LATER[part].get(k, object()) != v}
                  for part, config in (("segment", self.segment), ("train", self.train))}
+        if (code := feature_code()) != FEATURES_OF_STORED_RESULTS:
+            keyed["features"] = code
         text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
                            **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]

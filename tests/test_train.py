@@ -136,3 +136,17 @@ def test_attention_loss_is_class_balanced_and_silent_without_a_boundary():
     assert attention.grad[0] < 0 < attention.grad[1]  # pushes the band up, the rest down
     for flat in (torch.zeros(4), torch.ones(4)):
         assert _attention_loss(torch.ones(4), flat) == 0
+
+
+def test_a_change_of_feature_code_changes_every_key(monkeypatch):
+    from functools import partial
+
+    from anseg import features
+
+    base = Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(epochs=60, seed=0, device="auto"))
+    monkeypatch.setattr(features, "FEATURES_VERSION", features.FEATURES_VERSION + 1)
+    assert base.key() != "b1e98aa45e21a4b6"
+    monkeypatch.undo()
+    assert base.key() == "b1e98aa45e21a4b6"
+    monkeypatch.setattr(features, "FeatureSettings", partial(features.FeatureSettings, sdf_rays=24))
+    assert base.key() != "b1e98aa45e21a4b6"
