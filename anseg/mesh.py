@@ -225,8 +225,12 @@ class Mesh:
 
         Checks, in order: not empty, finite coordinates, face indices in
         range, no zero-area faces, no repeated faces, no non-manifold edges,
-        no non-manifold vertices.
+        no non-manifold vertices. A mesh is treated as immutable (its tables
+        are cached), so one that passed is not checked again: segmenting a
+        mesh asks several stages for a valid mesh, and only the first pays.
         """
+        if self.__dict__.get("_valid"):
+            return self
         if self.n_faces == 0 or self.n_vertices == 0:
             raise MeshError("mesh is empty (no faces or no vertices)")
         bad = ~np.isfinite(self.vertices).all(axis=1)
@@ -255,6 +259,7 @@ class Mesh:
         if pinched:
             raise MeshError(f"{pinched} non-manifold vertices (where sheets of faces meet at a single vertex); "
                             "anseg.repair(mesh) (--repair on the command line) cuts the sheets apart")
+        self._valid = True
         return self
 
 

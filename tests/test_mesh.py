@@ -238,3 +238,13 @@ def test_a_psb_mesh_with_a_fin_is_repaired_and_segmented_face_for_face(psb_sampl
                 progress=False)
     labels = labels_for_input_faces(segment(fixed, model).labels, face_map, glued)
     assert labels.shape == (glued.n_faces,) and labels.min() >= 0
+
+
+def test_a_valid_mesh_is_checked_once(monkeypatch):
+    mesh = grid_mesh(4, 4)
+    assert mesh.validate() is mesh
+    monkeypatch.setattr(Mesh, "corner_fans", property(lambda self: pytest.fail("checked again")))
+    assert mesh.validate() is mesh
+    broken = Mesh(mesh.vertices, np.vstack([mesh.faces, mesh.faces[:1]]))  # a new mesh is checked in full
+    with pytest.raises(MeshError, match="repeat"):
+        broken.validate()
