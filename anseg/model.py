@@ -12,6 +12,7 @@ Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
     depth x pre-norm block: h += Attn(LN h); h += MLP(LN h)       (T, W)
     logits = head([e, LN(h)[patch]])                              (F, C)
     attention = received mass of the token (last block) x share x F  (F,)
+    context = LN(h)[patch], what a finer level may read           (F, W)
 
 Choices, and why:
 
@@ -39,6 +40,11 @@ Choices, and why:
 - **Depth 0** is the paper's "without downsampling" control (Table IV): no tokens, no
   transformer and no attention module, a per-face classifier on the features alone
   (logits = head(e)); its attention is flat (1 at every face).
+- **Coarse context** (``coarse_levels`` > 0, off by default): a second head for the input
+  level reads, beside a face's embedding and its token's context, the context of the
+  face it became on each of the ``coarse_levels`` coarser levels (carried down by the
+  caller through the collapse records), U-Net style, so that the coarse levels' wide
+  view reaches the input faces through the network instead of a vote.
 - **Initialisation**: the paper draws initial weights from "N(0, 0.001)", read here as
   variance 0.001 (std ~ 0.0316), for every Linear weight; biases are zero and LayerNorm
   keeps its default (weight 1, bias 0).
@@ -77,6 +83,7 @@ class ModelConfig:
     dropout: float = 0.0
     init_std: float = math.sqrt(0.001)  # the paper's N(0, 0.001), read as variance
     position_frequencies: int = 0  # 0: no positional signal (see module docstring)
+    coarse_levels: int = 0  # coarser levels whose context the input level's second head reads (module docstring)
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
 
     def __post_init__(self) -> None:
@@ -93,13 +100,20 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.init_std must be > 0, got {self.init_std}")
         if self.position_frequencies < 0:
             raise ValueError(f"ModelConfig.position_frequencies must be >= 0, got {self.position_frequencies}")
+        if self.coarse_levels < 0 or (self.coarse_levels and not self.depth):
+            raise ValueError(f"ModelConfig.coarse_levels must be >= 0, and needs depth > 0, got {self.coarse_levels}")
 
 
 class Output(NamedTuple):
-    """Per-face class logits (F, C) and attention values (F,), mean 1; attention is None when not asked for."""
+    """Per-face class logits (F, C), attention values (F,) with mean 1 (None when not asked for), and context (F, W).
+
+    ``context`` is the face's token after the transformer (what the coarse-context
+    head of a finer level reads); None for a depth-0 model.
+    """
 
     logits: torch.Tensor
     attention: torch.Tensor | None
+    context: torch.Tensor | None = None
 
 
 def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = None) -> torch.Tensor:
@@ -222,18 +236,24 @@ class AttentionSegmenter(nn.Module):
         self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))
         self.norm_out = nn.LayerNorm(width)
         context = width if config.depth else 0  # depth 0: the face's own embedding only
-        self.head = nn.Sequential(
-            nn.Linear(width + context, width), nn.GELU(), nn.Dropout(config.dropout), nn.Linear(width, config.n_classes)
-        )
+        self.head = self._head(width + context)
+        # the input level's head with the coarse levels' context beside its own
+        self.context_head = self._head(2 * width + config.coarse_levels * width) if config.coarse_levels else None
         for module in self.modules():
             if isinstance(module, nn.Linear):
                 nn.init.normal_(module.weight, mean=0.0, std=config.init_std)
                 nn.init.zeros_(module.bias)
 
+    def _head(self, inputs: int) -> nn.Sequential:
+        width = self.config.width
+        return nn.Sequential(nn.Linear(inputs, width), nn.GELU(), nn.Dropout(self.config.dropout),
+                             nn.Linear(width, self.config.n_classes))
+
     def forward(
-        self, x: torch.Tensor, layout: PatchLayout, need_attention: bool = True, attention_grad: bool = False
+        self, x: torch.Tensor, layout: PatchLayout, need_attention: bool = True, attention_grad: bool = False,
+        coarse: torch.Tensor | None = None,
     ) -> Output:
-        """Logits (F, C) and attention (F,) of one mesh's faces.
+        """Logits (F, C), attention (F,) and context (F, W) of one mesh's faces.
 
         ``x``: (F, in_features) features; ``layout``: where every face sits in the
         (n_patches, patch_size) token grid (:func:`anseg.cluster.layout`, which
@@ -241,23 +261,32 @@ class AttentionSegmenter(nn.Module):
         received-attention pass (as costly as one attention layer) when only the
         logits are wanted, e.g. in most training steps; ``attention_grad=True``
         returns attention with its gradient (see the module docstring).
+        ``coarse`` (F, coarse_levels x W): the context of each face's face on
+        the coarser levels, read by the coarse-context head (input level only).
         """
         if x.dim() != 2 or x.shape[1] != self.config.in_features:
             raise ValueError(f"x must be (faces, {self.config.in_features}), got {tuple(x.shape)}")
         if layout.n_faces != x.shape[0] or layout.patch_size != self.config.patch_size:
             raise ValueError(f"the layout places {layout.n_faces} faces in patches of {layout.patch_size}; "
                              f"x has {x.shape[0]} faces and the model takes patches of {self.config.patch_size}")
+        if coarse is not None and (self.context_head is None or coarse.shape != (x.shape[0], self.config.coarse_levels * self.config.width)):
+            raise ValueError(f"coarse context must be (faces, {self.config.coarse_levels} x {self.config.width}) "
+                             f"for a model with coarse_levels={self.config.coarse_levels}, got {tuple(coarse.shape)}")
         mask = torch.as_tensor(layout.mask, device=x.device)
-        logits, attention = self.forward_patches(layout.to_tokens(x), mask, need_attention, attention_grad)
-        return Output(layout.to_faces(logits), layout.to_faces(attention) if attention is not None else None)
+        grid_coarse = layout.to_tokens(coarse) if coarse is not None else None
+        logits, attention, context = self.forward_patches(layout.to_tokens(x), mask, need_attention, attention_grad, grid_coarse)
+        return Output(*(layout.to_faces(t) if t is not None else None for t in (logits, attention, context)))
 
     def forward_patches(
-        self, grid: torch.Tensor, mask: torch.Tensor, need_attention: bool = True, attention_grad: bool = False
-    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        self, grid: torch.Tensor, mask: torch.Tensor, need_attention: bool = True, attention_grad: bool = False,
+        coarse: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
         """The network on a (T, P, in_features) grid with its (T, P) mask of real slots.
 
-        Returns logits (T, P, C) and attention (T, P) (or None); both are meaningless
-        at padding slots (attention is 0 there), whose input values are never read.
+        Returns logits (T, P, C), attention (T, P) (or None) and context (T, P, W)
+        (None at depth 0); all are meaningless at padding slots (attention is 0
+        there), whose input values are never read. ``coarse`` (T, P, k x W): the
+        coarse levels' context, for the coarse-context head.
         """
         if mask.dim() != 2 or mask.dtype != torch.bool:
             raise ValueError(f"mask must be a (patches, patch_size) bool tensor, got {mask.dtype} {tuple(mask.shape)}")
@@ -277,7 +306,7 @@ class AttentionSegmenter(nn.Module):
         if not self.blocks:  # the per-face classifier (module docstring)
             if attention_grad:
                 raise ValueError("a depth-0 model has no attention to train")
-            return self.head(embedded), (mask.to(embedded.dtype) if need_attention else None)
+            return self.head(embedded), (mask.to(embedded.dtype) if need_attention else None), None
         share = torch.softmax(self.share_score(embedded).squeeze(-1).masked_fill(~mask, -math.inf), dim=1)
         h = (share.unsqueeze(-1) * embedded).sum(dim=1)
         if self.position is not None:
@@ -285,15 +314,18 @@ class AttentionSegmenter(nn.Module):
         for block in self.blocks:
             h, q, k = block(h)
         context = self.norm_out(h).unsqueeze(1).expand(-1, patch_size, -1)
-        logits = self.head(torch.cat([embedded, context], dim=-1))
+        if coarse is not None:
+            logits = self.context_head(torch.cat([embedded, context, coarse.masked_fill(~real, 0.0)], dim=-1))
+        else:
+            logits = self.head(torch.cat([embedded, context], dim=-1))
         if attention_grad:
-            return logits, received_attention(q, k).unsqueeze(1) * share * mask.sum()
+            return logits, received_attention(q, k).unsqueeze(1) * share * mask.sum(), context
         if not need_attention:
-            return logits, None
+            return logits, None, context
         with torch.no_grad():
             mass = received_attention(q.detach(), k.detach())
             attention = mass.unsqueeze(1) * share.detach() * mask.sum()
-        return logits, attention
+        return logits, attention, context
 
     def _position_features(self, n_tokens: int, device: torch.device) -> torch.Tensor:
         """sin/cos of 2^j pi t/(T-1), j < position_frequencies: (T, 2 x frequencies)."""

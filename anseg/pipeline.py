@@ -28,7 +28,10 @@ Choices this module makes (see DESIGN.md):
   stands for, while averaging keeps the coarse levels' context and the fine
   level's detail. ``combine="decay"`` weighs level i by 2^-i (each level has
   about half the faces of the one before), so that the input level keeps
-  half the vote instead of a fifth.
+  half the vote instead of a fifth; ``"finest"`` takes the input level
+  alone, the reading for a network with coarse context (TrainConfig's
+  ``coarse_context``: the input level's head reads the coarse levels'
+  context carried down through the collapse records, :func:`forward_levels`).
 * ``local_scale``: the ``edge`` group's values are lengths on the unit-area
   mesh, so they grow as a level gets coarser (the product of three lengths
   by 8x per halving) and sit far outside the level-0 statistics that
@@ -59,7 +62,7 @@ from anseg.model import AttentionSegmenter, ModelConfig
 
 # how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
-COMBINE = ("coarsest", "all", "decay")
+COMBINE = ("coarsest", "all", "decay", "finest")
 LOCAL_SCALES = ("unit_area", "relative")
 
 
@@ -302,17 +305,47 @@ def fill_attention(model: Segmenter, levels: list[Level], device="cpu") -> list[
     return levels
 
 
+def input_to_level(levels: list[Level]) -> list[np.ndarray | None]:
+    """For every coarse level, the face each input face became there (None for the input level)."""
+    return [collapse.compose([lv.record for lv in levels[:index]]) if index else None for index in range(len(levels))]
+
+
+def forward_levels(network: AttentionSegmenter, inputs: list[dict], to_level: list, attention_grad: list[bool],
+                   need_attention: bool = False) -> list:
+    """The network's Output on every level of one mesh, in level order.
+
+    With coarse context (``network.config.coarse_levels``) the coarse levels
+    go first and the input level's head reads their context, carried down to
+    its faces by ``to_level`` (:func:`input_to_level`, as tensors).
+    """
+    with_context = network.config.coarse_levels > 0
+    outputs = [None] * len(inputs)
+    for index in [*range(1, len(inputs)), 0] if with_context else range(len(inputs)):
+        coarse = None
+        if with_context and index == 0:
+            coarse = torch.cat([outputs[i].context[to_level[i]] for i in range(1, len(inputs))], dim=1)
+        outputs[index] = network(**inputs[index], need_attention=need_attention, attention_grad=attention_grad[index],
+                                 coarse=coarse)
+    return outputs
+
+
 def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentConfig, device="cpu") -> np.ndarray:
-    """Class probabilities on the original faces, carried up from the coarsest level (or all levels)."""
+    """Class probabilities on the original faces, carried up from the coarsest level (or all levels, or the input level)."""
     model.network.eval()
+    inputs = [model_inputs(model, level, index, len(levels), device) for index, level in enumerate(levels)]
+    maps = [torch.as_tensor(m, device=device) if m is not None else None for m in input_to_level(levels)]
+    wanted = {"coarsest": [len(levels) - 1], "finest": [0]}.get(config.combine, range(len(levels)))
     per_level, weights = [], []
     with torch.no_grad():
-        for index, level in enumerate(levels):
-            if config.combine == "coarsest" and index < len(levels) - 1:
-                continue
-            out = model(**model_inputs(model, level, index, len(levels), device))
-            if level.attention is None:
-                level.attention = out.attention.cpu().numpy()
+        if model.network.config.coarse_levels:
+            outputs = dict(enumerate(forward_levels(model.network, inputs, maps, [False] * len(levels), need_attention=True)))
+        else:  # only the levels whose labels count
+            outputs = {index: model.network(**inputs[index]) for index in wanted}
+        for index, out in outputs.items():
+            if levels[index].attention is None:
+                levels[index].attention = out.attention.cpu().numpy()
+        for index in wanted:
+            out = outputs[index]
             probs = torch.softmax(out.logits, dim=1).cpu().numpy().astype(np.float64)
             records = [lv.record for lv in levels[:index]]
             per_level.append(collapse.upsample_through(records, probs) if records else probs)
