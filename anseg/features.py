@@ -129,9 +129,9 @@ _RAYS_PER_CALL = 1 << 20  # bounds the memory of the ray arrays on big meshes
 _BVH_LEAF = 4  # triangles per leaf of the ray-casting tree
 DIRECT_SOLVE_MAX_VERTICES = 30_000  # the smooth group's diffusion: sparse LU up to here, multigrid-preconditioned CG above
 DIFFUSION_RTOL = 1e-10  # the iterative diffusion of the smooth group: relative residual
-# Above this many faces (beyond every benchmark mesh) the SDF rays go through embree and the AGD is computed on
+# Above this many faces (the largest benchmark mesh has 55,644) the SDF rays go through embree and the AGD is computed on
 # a uniform collapse of PROXY_FACES faces (_shape_diameter, _Geometry.agd); smaller meshes as they always were.
-LARGE_MESH_FACES = 100_000
+LARGE_MESH_FACES = 60_000
 PROXY_FACES = 50_000  # about the size of the larger benchmark meshes
 PROGRESS_MIN_FACES = 100_000  # a single mesh shows a progress bar from this size (tens of seconds of work)
 POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces in all (about a second of work)
