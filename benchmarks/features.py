@@ -33,17 +33,14 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import resource
-import subprocess
-import sys
-import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from stages import import_from, reference_checkout
 
 TIMED_GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd", "smooth")
-REPO = Path(__file__).resolve().parent.parent
 # (target faces of the PSB mesh, times it is split in four): 5K .. 500K faces
 PLAN = [(5_000, 0), (10_000, 0), (25_000, 0), (12_500, 1), (25_000, 1), (12_500, 2), (19_000, 2), (31_000, 2)]
 
@@ -89,8 +86,7 @@ def measure(path: str, upsample: int, repeats: int, code: str | None = None) -> 
 
     ``code``: a checkout whose ``anseg`` is imported instead of this one's.
     """
-    if code is not None:
-        sys.path.insert(0, code)
+    import_from(code)
     import igl
     import trimesh
 
@@ -186,26 +182,16 @@ def main() -> None:
 
     folder = psb_folder(args.data)
     files = {p: face_count(p) for p in sorted(folder.glob("*/*.off"))}
-    with tempfile.TemporaryDirectory() as scratch:
-        code = None
-        if args.reference:
-            code = str(Path(scratch) / "reference")
-            subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", code, args.reference],
-                           check=True, capture_output=True)
-        try:
-            rows = []
-            for target, upsample in PLAN:
-                path = nearest(files, target)
-                row = run_fresh(path, upsample, args.repeats)
-                reference = (run_fresh(path, upsample, args.repeats, code)
-                             if code and row["faces"] <= args.reference_max else None)
-                name = f"{path.parent.name}/{path.stem}" + (f" x{4 ** upsample}" if upsample else "")
-                rows.append((name, row, reference))
-                print(f"measured {name}: {row['faces']:,} faces, default {row['default']:.2f} s"
-                      + (f" (reference {reference['default']:.2f} s)" if reference else ""), flush=True)
-        finally:
-            if code:
-                subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", code], capture_output=True)
+    rows = []
+    with reference_checkout(args.reference) as code:
+        for target, upsample in PLAN:
+            path = nearest(files, target)
+            row = run_fresh(path, upsample, args.repeats)
+            reference = run_fresh(path, upsample, args.repeats, code) if code and row["faces"] <= args.reference_max else None
+            name = f"{path.parent.name}/{path.stem}" + (f" x{4 ** upsample}" if upsample else "")
+            rows.append((name, row, reference))
+            print(f"measured {name}: {row['faces']:,} faces, default {row['default']:.2f} s"
+                  + (f" (reference {reference['default']:.2f} s)" if reference else ""), flush=True)
     print(f"\nseconds per group (best of {args.repeats}; each group alone), peak = ru_maxrss of a fresh process"
           + (f"; in brackets: {args.reference}'s time (peak) over ours, meshes up to {args.reference_max:,} faces"
              if args.reference else ""))

@@ -1,9 +1,38 @@
-"""Time the stages of a run by wrapping the package functions that implement them (shared by the benchmarks)."""
+"""What the benchmarks share: stage timers that wrap the package functions, and a reference revision's checkout."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import tempfile
 import time
 from contextlib import contextmanager
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@contextmanager
+def reference_checkout(revision: str | None):
+    """A temporary git worktree of ``revision`` (its path), or None without one; removed on leaving."""
+    if revision is None:
+        yield None
+        return
+    with tempfile.TemporaryDirectory() as scratch:
+        path = str(Path(scratch) / "reference")
+        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", path, revision], check=True, capture_output=True)
+        try:
+            yield path
+        finally:
+            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", path], capture_output=True)
+
+
+def import_from(code: str | None) -> None:
+    """Make ``import anseg`` find the checkout at ``code`` (in a fresh process, before anseg is imported)."""
+    if code is not None:
+        sys.path.insert(0, code)
+        if "anseg" in sys.modules:
+            raise RuntimeError("anseg was imported before the reference checkout was put first")
 
 
 @contextmanager
@@ -29,8 +58,11 @@ def stage_timers(totals: dict, wrapped: dict):
             setattr(owner, name, original)
 
 
-def print_stages(totals: dict) -> None:
-    """A two-column table, slowest stage first and the total last."""
-    print(f"{'stage':<26}{'seconds':>10}")
+def print_stages(totals: dict, reference: dict | None = None, name: str = "reference") -> None:
+    """Seconds by stage, slowest first and the total last; beside them a reference's and its time over ours."""
+    print(f"{'stage':<26}{'seconds':>10}" + (f"{name:>14}{'ratio':>8}" if reference else ""))
     for stage, seconds in sorted(totals.items(), key=lambda kv: (kv[0] == "total", -kv[1])):
-        print(f"{stage:<26}{seconds:>10.3f}")
+        line = f"{stage:<26}{seconds:>10.3f}"
+        if reference and stage in reference:
+            line += f"{reference[stage]:>14.3f}{reference[stage] / max(seconds, 1e-9):>7.2f}x"
+        print(line)

@@ -1,37 +1,35 @@
-"""Training time of one category, by stage, with the notebooks' settings.
+"""Training time of one category, by stage, beside a reference revision of the code.
 
     python benchmarks/train.py [--dataset psb] [--category Teddy] [--split 0] [--mode nonuniform]
-                               [--epochs 60] [--device auto] [--threads 1]
+                               [--epochs 60] [--device auto] [--threads 1] [--reference REV]
 
 Trains on the split's training meshes and evaluates on its test meshes, as
-``anseg.train.run_experiment`` does (nothing is stored). Stages: level-0
-features (read from the cache when there), rebuilding the hierarchy from the
-current attention (every ``recollapse_every`` epochs), the gradient steps
-(the rest of training) and evaluation. ``--threads 1`` is the setting of the
-parallel runs (``python -m anseg.reproduce --train-only --workers N``).
+``anseg.experiments.train_and_evaluate`` does (nothing is stored; the test
+accuracy is printed only to show whether two codes give the same result).
+Stages: level-0 features (read from the cache when there), rebuilding the
+hierarchy from the current attention (every ``recollapse_every`` epochs),
+the gradient steps (the rest of training) and evaluation. ``--threads 1``
+is the setting of the parallel runs. With ``--reference`` the same run is
+made in a fresh process with the code of that git revision (a temporary
+worktree), and every stage is printed beside it with the reference's time
+over ours.
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import time
 from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from stages import print_stages, stage_timers
+from stages import import_from, print_stages, reference_checkout, stage_timers
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--dataset", default="psb")
-    parser.add_argument("--category", default="Teddy")
-    parser.add_argument("--split", type=int, default=0)
-    parser.add_argument("--mode", default="nonuniform", choices=["nonuniform", "uniform", "none"])
-    parser.add_argument("--epochs", type=int, default=60)
-    parser.add_argument("--device", default="auto")
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
-    args = parser.parse_args(argv)
-
+def measure(args, code: str | None = None) -> tuple[dict, float, str]:
+    """Runs in a fresh process: seconds by stage, the test accuracy, and what ran."""
+    import_from(code)
     import torch
 
     import anseg.train as train
@@ -48,18 +46,42 @@ def main(argv=None) -> None:
     stages = {"features (level 0)": (train, "level_zero_features"), "rebuild hierarchy": (train, "_examples")}
     start = time.perf_counter()
     with stage_timers(totals, stages):
-        model = train.fit(train_set, train_set[0].label_names, config, settings, progress=True)
+        model = train.fit(train_set, train_set[0].label_names, config, settings, progress=False)
     totals["gradient steps"] = time.perf_counter() - start - totals["features (level 0)"] - totals["rebuild hierarchy"]
     evaluated = time.perf_counter()
     scores = train.evaluate(model, test_set, progress=False)
     totals["evaluate"] = time.perf_counter() - evaluated
     totals["total"] = time.perf_counter() - start
-    faces = [m.mesh.n_faces for m in train_set]
-    print(f"{args.dataset} {category} split {args.split}: {len(train_set)} training meshes "
-          f"({np.mean(faces):.0f} faces on average), {len(test_set)} test meshes; mode {args.mode}, {args.epochs} epochs")
-    print(f"device {train.resolve_device(args.device)}, torch threads {torch.get_num_threads()}; "
-          f"test accuracy (Eq. 5, unit area) {100 * scores['smoothed']['unit_area']:.2f} %")
-    print_stages(totals)
+    faces = np.mean([m.mesh.n_faces for m in train_set])
+    what = (f"{args.dataset} {category} split {args.split}: {len(train_set)} training meshes ({faces:.0f} faces on average), "
+            f"{len(test_set)} test meshes; mode {args.mode}, {args.epochs} epochs; device "
+            f"{train.resolve_device(args.device)}, torch threads {torch.get_num_threads()}")
+    return dict(totals), 100 * scores["smoothed"]["unit_area"], what
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--dataset", default="psb")
+    parser.add_argument("--category", default="Teddy")
+    parser.add_argument("--split", type=int, default=0)
+    parser.add_argument("--mode", default="nonuniform", choices=["nonuniform", "uniform", "none"])
+    parser.add_argument("--epochs", type=int, default=60)
+    parser.add_argument("--device", default="auto")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
+    parser.add_argument("--reference", help="git revision whose code trains the same run beside this one")
+    args = parser.parse_args(argv)
+
+    context = multiprocessing.get_context("spawn")  # fresh processes: each imports its own anseg
+    with reference_checkout(args.reference) as code:
+        runs = []
+        for checkout in ([None, code] if code else [None]):
+            with ProcessPoolExecutor(1, mp_context=context) as pool:
+                runs.append(pool.submit(measure, args, checkout).result())
+    (ours, accuracy, what), reference = runs[0], (runs[1] if code else None)
+    print(what)
+    print(f"test accuracy (Eq. 5, unit area): {accuracy:.2f} %"
+          + (f"; {args.reference}: {reference[1]:.2f} %" if reference else ""))
+    print_stages(ours, reference[0] if reference else None, name=args.reference or "reference")
 
 
 if __name__ == "__main__":
