@@ -58,7 +58,7 @@ from anseg.cluster import PatchLayout, layout
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
 from anseg.mesh import Mesh
-from anseg.model import AttentionSegmenter, ModelConfig
+from anseg.model import AttentionSegmenter, ModelConfig, Output
 
 # how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
@@ -189,6 +189,7 @@ class Level:
     layout: PatchLayout
     attention: np.ndarray | None = None
     record: collapse.CollapseRecord | None = None
+    logits: torch.Tensor | None = field(default=None, repr=False)  # kept from the pass that computed the attention
 
     def feature_matrix(self, level: int, n_levels: int, local_scale: str = "unit_area") -> np.ndarray:
         """The model's raw input: the feature groups side by side (as :func:`input_groups` reads them), then the level column."""
@@ -270,7 +271,8 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
         if config.mode == "nonuniform":
             model.network.eval()
             with torch.no_grad():
-                level.attention = model(**model_inputs(model, level, index, config.n_levels, device)).attention.cpu().numpy()
+                out = model(**model_inputs(model, level, index, config.n_levels, device))
+            level.attention, level.logits = out.attention.cpu().numpy(), out.logits
             scores = collapse_weights(level.attention, config.density_range) if config.priority == "weighted" else level.attention
         else:
             scores = None
@@ -339,8 +341,9 @@ def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentCo
     with torch.no_grad():
         if model.network.config.coarse_levels:
             outputs = dict(enumerate(forward_levels(model.network, inputs, maps, [False] * len(levels), need_attention=True)))
-        else:  # only the levels whose labels count
-            outputs = {index: model.network(**inputs[index]) for index in wanted}
+        else:  # only the levels whose labels count, reusing the pass that computed their attention
+            outputs = {index: Output(levels[index].logits, None) if levels[index].logits is not None
+                       else model.network(**inputs[index]) for index in wanted}
         for index, out in outputs.items():
             if levels[index].attention is None:
                 levels[index].attention = out.attention.cpu().numpy()
