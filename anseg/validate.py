@@ -177,8 +177,10 @@ def study_cells(arms, categories, folds: int, use_folds, seeds, epochs=None, dat
 
 
 def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, workers: int = 1,
-              scheduler: str | None = None, progress: bool = True) -> list[dict]:
+              scheduler: str | None = None, progress: bool = True, backend: str = "dask") -> list[dict]:
     """Run (or read back) every cell, ``workers`` at a time (or on the Dask cluster at ``scheduler``).
+
+    ``backend="loky"``: a plain process pool, where Dask is not installed (the GPU machine).
 
     Results come back to this process and are stored as they arrive. Cells
     that train go first; the cells that only change how a trained model
@@ -200,7 +202,7 @@ def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, worke
             todo = list(first.values())
             calls = [(compute_cell, (c, root, None, str(store.checkpoint_path(c.training_key())))) for c in todo]
         for index, outcome in run_parallel(calls, workers, progress=progress, desc=f"validate ({phase})",
-                                           backend="dask", scheduler=scheduler):
+                                           backend=backend, scheduler=scheduler):
             if isinstance(outcome, Exception):
                 print(f"[anseg] FAILED {todo[index].describe()}: {outcome}", file=sys.stderr, flush=True)
                 continue
@@ -328,6 +330,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1,
                         help="cells trained side by side, one Dask worker process of one thread each (default: 1)")
     parser.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler (tcp://HOST:8786) to send the cells to")
+    parser.add_argument("--backend", choices=["dask", "loky"], default="dask",
+                        help="Dask (default), or a plain process pool where Dask is not installed")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"result store and report folder (default: {DEFAULT_OUT})")
     parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
     parser.add_argument("--report-only", action="store_true", help="write the report from the stored cells, train nothing")
@@ -344,6 +348,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"baseline {baseline!r} is not among the arms")
         if args.workers < 1:
             raise ValueError("--workers must be at least 1")
+        if args.scheduler and args.backend != "dask":
+            raise ValueError("--scheduler needs the dask backend")
         use_folds = args.use_folds if args.use_folds is not None else list(range(args.folds))
         if any(not 0 <= f < args.folds for f in use_folds):
             raise ValueError(f"--use-folds must lie in 0..{args.folds - 1}")
@@ -354,7 +360,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.report_only:
         results = read_results(args.out, cells)
     else:
-        results = run_study(cells, args.out, args.data, args.workers, args.scheduler, progress=not args.quiet)
+        results = run_study(cells, args.out, args.data, args.workers, args.scheduler, progress=not args.quiet,
+                            backend=args.backend)
     if not results:
         print("no results stored for this study yet", file=sys.stderr)
         return 1

@@ -4,22 +4,11 @@
 #
 #   bash scripts/gpu_train.sh WHEELS_DIR PACKED_PSB OUT_DIR STOP_AFTER_MIN HARD_LIMIT_S NOTEBOOK...
 #
-# The plain process pool (--backend loky), so that Dask need not be carried there.
-# WHEELS_DIR: py3.12 wheels of trimesh, libigl, potpourri3d and gco-wrapper (its ctypes library loads on any
-# CPython, so the cp311 wheel is unzipped as it is); PACKED_PSB: made by `python scripts/pack_psb.py pack`.
-# Writes OUT_DIR/runs.tgz (results/runs plus the models the notebooks render) and OUT_DIR/log.txt; unpack
-# runs.tgz in the repository root, then `make reproduce DATA=real` reads the stored results.
+# The plain process pool (--backend loky), so that Dask need not be carried there. WHEELS_DIR, PACKED_PSB: see
+# gpu_setup.sh. Writes OUT_DIR/runs.tgz (results/runs plus the models the notebooks render) and OUT_DIR/log.txt;
+# unpack runs.tgz in the repository root, then `make reproduce DATA=real` reads the stored results.
 wheels=$1; packed=$2; out=$3; stop=$4; hard=$5; shift 5
-t0=$(date +%s)
-python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site \
-    "$wheels"/trimesh*.whl "$wheels"/libigl*.whl "$wheels"/potpourri3d*.whl || exit 1
-python3 -m zipfile -e "$wheels"/gco_wrapper*.whl /tmp/site || exit 1
-export PYTHONPATH=/tmp/site:$PWD ANSEG_DATA=/tmp/data ANSEG_CACHE=/tmp/cache PYTHONUNBUFFERED=1 \
-    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1
-[ -d /tmp/data/LabeledDB_new ] || python3 scripts/pack_psb.py unpack "$packed" /tmp/data || exit 1
-# MPS lets the jobs' small kernels share the GPU instead of time-slicing it (about 2x faster per run here)
-nvidia-cuda-mps-control -d 2>/dev/null && echo "MPS daemon started"
-echo "setup took $(( $(date +%s) - t0 )) s"
+source "$(dirname "$0")"/gpu_setup.sh "$wheels" "$packed"
 left=$(( hard - ($(date +%s) - t0) ))
 # killed hard at the limit, so that what is stored still gets packed below
 (timeout -s KILL $left python3 -m anseg.reproduce --data real --train-only --backend loky --workers "$(nproc)" \

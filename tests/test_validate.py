@@ -102,6 +102,9 @@ def test_cli_refuses_bad_arms_in_one_line(capsys):
     assert "train.width" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         validate.main(["--study", "x", "--arm", "a", "--arm", "a"])
+    with pytest.raises(SystemExit):
+        validate.main(["--study", "x", "--arm", "a", "--backend", "loky", "--scheduler", "tcp://host:8786"])
+    assert "needs the dask backend" in capsys.readouterr().err
 
 
 @pytest.mark.realdata
