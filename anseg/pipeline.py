@@ -252,19 +252,26 @@ def collapse_weights(attention: np.ndarray, density_range: float) -> np.ndarray:
 
 
 def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: dict[str, np.ndarray] | None = None,
-                 device="cpu", progress: bool = False) -> list[Level]:
+                 device="cpu", progress: bool = False, first_layout: PatchLayout | None = None) -> list[Level]:
     """Run the N downsampling units; attention comes from ``model`` (no gradients).
 
     ``groups`` are the level-0 features (computed, with the cache, when not
-    given; ``progress`` shows their bar on a large mesh).
+    given; ``progress`` shows their bar on a large mesh). ``first_layout``:
+    the input level's patch layout when it is known already (it depends on
+    the features alone, so training's rebuilds reuse it instead of clustering
+    again).
     """
     if groups is None:
         groups = features.compute_groups(mesh, config.groups, cache=True, progress=progress)
     levels = []
     current, current_groups = mesh, groups
     for index in range(config.n_levels):
-        x = np.concatenate(list(input_groups(current_groups, config.local_scale).values()), axis=1)
-        level = Level(current, current_groups, layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed))
+        if index == 0 and first_layout is not None:
+            patches = first_layout
+        else:
+            x = np.concatenate(list(input_groups(current_groups, config.local_scale).values()), axis=1)
+            patches = layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed)
+        level = Level(current, current_groups, patches)
         levels.append(level)
         if index == config.n_levels - 1:
             break

@@ -10,7 +10,9 @@ The collapse is not differentiable, so the hierarchy is rebuilt from the
 current attention every ``recollapse_every`` epochs (default 5) and kept in
 between: rebuilding needs K-means and the coarse features at every level,
 which costs more than the gradient steps, and the attention moves slowly
-from epoch to epoch.
+from epoch to epoch. The input level's layout and a hierarchy that
+attention does not drive (uniform collapse, none) never change, so they
+are built once.
 
 The attention gets a training signal of its own (``attention_weight``, on by
 default; 0 gives the paper's plain reading, where attention is trained only
@@ -46,6 +48,7 @@ import torch.nn.functional as F
 
 from anseg import collapse, features
 from anseg.cache import atomic_write
+from anseg.cluster import PatchLayout
 from anseg.metrics import pooled_accuracy
 from anseg.model import AttentionSegmenter, ModelConfig
 from anseg.pipeline import (
@@ -144,13 +147,14 @@ class _Example:
     weights: list[torch.Tensor]
     near_boundary: list[torch.Tensor | None]  # attention targets of the levels that get collapsed
     to_level: list[torch.Tensor | None]  # the face each input face became on every coarse level
+    first_layout: PatchLayout  # the input level's, the same at every rebuild
 
 
-def _examples(model: Segmenter, mesh, labels, groups, train: TrainConfig, device) -> _Example:
-    levels = build_levels(mesh, model, model.config, groups, device)
+def _examples(model: Segmenter, mesh, labels, groups, train: TrainConfig, device, first_layout=None) -> _Example:
+    levels = build_levels(mesh, model, model.config, groups, device, first_layout=first_layout)
     supervise = model.config.mode == "nonuniform" and train.attention_weight > 0
     maps = [torch.as_tensor(m, device=device) if m is not None else None for m in input_to_level(levels)]
-    example = _Example([], [], [], [], maps)
+    example = _Example([], [], [], [], maps, levels[0].layout)
     for index, (level, target) in enumerate(zip(levels, level_labels(levels, labels, model.n_classes))):
         area = level.mesh.face_areas
         example.inputs.append(model_inputs(model, level, index, len(levels), device))
@@ -237,10 +241,12 @@ def fit(
     bar = tqdm(range(start, train.epochs), desc="train", disable=not progress, initial=start, total=train.epochs)
     examples: list[_Example] = []
     for epoch in bar:
-        if not examples or epoch % train.recollapse_every == 0:
+        # only attention changes a hierarchy: a uniform or no collapse is built once
+        if not examples or (config.mode == "nonuniform" and epoch % train.recollapse_every == 0):
             # a run resumed between rebuilds rebuilds with the weights of the last rebuild, as the run it continues did
             with state.weights_of_last_rebuild(epoch % train.recollapse_every == 0):
-                examples = [_examples(model, m.mesh, m.labels, g, train, device) for m, g in zip(train_set, groups)]
+                examples = [_examples(model, m.mesh, m.labels, g, train, device, e.first_layout if e else None)
+                            for m, g, e in zip(train_set, groups, examples or [None] * len(train_set))]
         network.train()
         losses, accuracies = [], []
         for step, i in enumerate(order.permutation(len(examples)), start=epoch * len(examples)):

@@ -166,3 +166,23 @@ def test_coarse_context_trains_and_segments_from_the_input_level(split):
     assert result.labels.shape == (test_set[0].mesh.n_faces,)
     assert np.allclose(result.probabilities.sum(axis=1), 1.0)
     assert all(level.attention is not None for level in result.levels)
+
+
+def test_only_attention_makes_a_rebuild(split, monkeypatch):
+    """A uniform hierarchy is built once; a nonuniform rebuild re-clusters the coarse levels, not the input level."""
+    import anseg.pipeline as pipeline
+    import anseg.train as train_module
+
+    train_set, _ = split
+    built, clustered = [], []
+    real_examples, real_layout = train_module._examples, pipeline.layout
+    monkeypatch.setattr(train_module, "_examples", lambda *a, **k: built.append(1) or real_examples(*a, **k))
+    monkeypatch.setattr(pipeline, "layout", lambda mesh, *a, **k: clustered.append(mesh.n_faces) or real_layout(mesh, *a, **k))
+    settings = TrainConfig(epochs=3, recollapse_every=1, width=16, depth=1)
+    fit(train_set[:2], train_set[0].label_names, replace(SMALL, mode="uniform"), settings, progress=False)
+    assert len(built) == 2
+    built.clear(), clustered.clear()
+    fit(train_set[:2], train_set[0].label_names, SMALL, settings, progress=False)
+    assert len(built) == 6
+    input_sizes = {m.mesh.n_faces for m in train_set[:2]}
+    assert sum(n in input_sizes for n in clustered) == 2  # the input levels were clustered at the first build only
