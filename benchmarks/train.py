@@ -37,6 +37,10 @@ def measure(args, code: str | None = None) -> tuple[dict, float, str]:
     from anseg.pipeline import SegmentConfig
 
     torch.set_num_threads(args.threads)
+    # warm-up: numba compiles the collapse and the ray caster on first use (a reference checkout compiles afresh)
+    shapes = datasets.load("synthetic", category="figure", split="train", n_shapes=4, progress=False)[:2]
+    train.fit(shapes, shapes[0].label_names, SegmentConfig(mode=args.mode, cycles=2, clusters=4),
+              train.TrainConfig(epochs=1, width=16, depth=1), progress=False)
     category = None if args.category in ("", "none") else args.category
     load = dict(category=category, split_index=args.split, progress=False)
     train_set, test_set = datasets.load(args.dataset, split="train", **load), datasets.load(args.dataset, split="test", **load)
