@@ -177,10 +177,11 @@ def study_cells(arms, categories, folds: int, use_folds, seeds, epochs=None, dat
 
 
 def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, workers: int = 1,
-              scheduler: str | None = None, progress: bool = True, backend: str = "dask") -> list[dict]:
+              scheduler: str | None = None, progress: bool = True, backend: str = "dask", train: bool = True) -> list[dict]:
     """Run (or read back) every cell, ``workers`` at a time (or on the Dask cluster at ``scheduler``).
 
     ``backend="loky"``: a plain process pool, where Dask is not installed (the GPU machine).
+    ``train=False``: score only the cells whose trained model is stored (a stopped study's inference-only arms).
 
     Results come back to this process and are stored as they arrive. Cells
     that train go first; the cells that only change how a trained model
@@ -190,7 +191,7 @@ def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, worke
 
     store = validation_store(out)
     results = {cell.key(): store.get(cell.key()) for cell in cells}
-    for phase in ("train", "reuse"):
+    for phase in ("train", "reuse") if train else ("reuse",):
         todo = [c for c in cells if results[c.key()] is None
                 and (store.model_path(c.training_key()).is_file()) == (phase == "reuse")]
         if phase == "reuse":
@@ -335,6 +336,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"result store and report folder (default: {DEFAULT_OUT})")
     parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
     parser.add_argument("--report-only", action="store_true", help="write the report from the stored cells, train nothing")
+    parser.add_argument("--no-train", action="store_true",
+                        help="train nothing; score the cells whose model is stored (e.g. graph-cut arms of a stopped study)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
@@ -361,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
         results = read_results(args.out, cells)
     else:
         results = run_study(cells, args.out, args.data, args.workers, args.scheduler, progress=not args.quiet,
-                            backend=args.backend)
+                            backend=args.backend, train=not args.no_train)
     if not results:
         print("no results stored for this study yet", file=sys.stderr)
         return 1

@@ -93,6 +93,8 @@ def test_a_study_stores_its_cells_and_resumes_without_training(tmp_path, monkeyp
     assert len(list((tmp_path / "runs").glob("*.json"))) == 2
     again = validate.run_study(cells, tmp_path, progress=False)
     assert len(fits) == 1 and [r["key"] for r in again] == [r["key"] for r in results]
+    seed_one = validate.study_cells(arms, ["figure"], folds=2, use_folds=[0], seeds=[1], epochs=2, **SYNTHETIC)
+    assert validate.run_study(seed_one, tmp_path, progress=False, train=False) == [] and len(fits) == 1
 
 
 def test_cli_refuses_bad_arms_in_one_line(capsys):
