@@ -32,6 +32,9 @@ Choices, and why:
   It is computed without gradient, except with ``attention_grad=True``: training
   may then supervise it (anseg.train teaches it to mark label boundaries, where the
   collapse must keep detail); the backward pass runs over the same chunks.
+  ``detach_share`` cuts that supervision's direct path through the share (the factor
+  that spreads a token's mass over its faces), so that the boundary signal goes to the
+  queries and keys; the share still shapes the tokens they are made from.
 - **Positional signal**: off by default (``position_frequencies = 0``). The sequence
   is ordered by K-means cluster, and cluster numbers are arbitrary from mesh to mesh, so
   absolute position in the sequence carries no meaning that transfers; it is exposed
@@ -84,6 +87,7 @@ class ModelConfig:
     init_std: float = math.sqrt(0.001)  # the paper's N(0, 0.001), read as variance
     position_frequencies: int = 0  # 0: no positional signal (see module docstring)
     coarse_levels: int = 0  # coarser levels whose context the input level's second head reads (module docstring)
+    detach_share: bool = False  # the attention loss reaches the share only through the tokens (module docstring)
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
 
     def __post_init__(self) -> None:
@@ -319,7 +323,8 @@ class AttentionSegmenter(nn.Module):
         else:
             logits = self.head(torch.cat([embedded, context], dim=-1))
         if attention_grad:
-            return logits, received_attention(q, k).unsqueeze(1) * share * mask.sum(), context
+            pooling = share.detach() if self.config.detach_share else share
+            return logits, received_attention(q, k).unsqueeze(1) * pooling * mask.sum(), context
         if not need_attention:
             return logits, None, context
         with torch.no_grad():

@@ -75,7 +75,8 @@ class TrainConfig:
     last epochs, whose model is the one kept, settle instead of moving at
     full step size. ``coarse_context`` gives the input level a head that
     reads the coarse levels' context (:mod:`anseg.model`); its loss then
-    weighs as much as the coarse levels' together.
+    weighs as much as the coarse levels' together. ``detach_share``: the
+    attention loss does not reach the pooling share directly (:mod:`anseg.model`).
     """
 
     epochs: int = 60
@@ -87,6 +88,7 @@ class TrainConfig:
     dropout: float = 0.0
     embed_norm: bool = False
     coarse_context: bool = False
+    detach_share: bool = False
     recollapse_every: int = 5
     attention_weight: float = 1.0
     boundary_rings: int = 2
@@ -227,7 +229,7 @@ def fit(
         ModelConfig(
             in_features=len(mean), n_classes=len(label_names), width=train.width, depth=train.depth,
             heads=train.heads, patch_size=config.patch_size, dropout=train.dropout, embed_norm=train.embed_norm,
-            coarse_levels=config.n_levels - 1 if train.coarse_context else 0,
+            coarse_levels=config.n_levels - 1 if train.coarse_context else 0, detach_share=train.detach_share,
         )
     ).to(device)
     model = Segmenter(network, config, mean, std, list(label_names))

@@ -225,3 +225,20 @@ def test_depth_zero_is_a_per_face_classifier():
         model(x, layout, attention_grad=True)
     with pytest.raises(ValueError, match="depth"):
         ModelConfig(in_features=5, n_classes=3, depth=-1)
+
+
+def test_detach_share_cuts_the_attention_loss_direct_path_through_the_share():
+    g = torch.Generator().manual_seed(2)
+    x = torch.randn(64, 5, generator=g)
+    layout = random_layout(64, 8, g, clusters=2)
+    values, grads = [], []
+    for detach in (False, True):
+        torch.manual_seed(2)  # the same weights
+        model = AttentionSegmenter(ModelConfig(in_features=5, n_classes=3, width=16, heads=2, patch_size=8, detach_share=detach))
+        attention = model(x, layout, attention_grad=True).attention
+        attention[:5].sum().backward()
+        values.append(attention.detach())
+        grads.append(model.share_score.weight.grad.clone())
+        assert model.blocks[-1].attention.qkv.weight.grad.abs().sum() > 0
+    torch.testing.assert_close(values[0], values[1])  # the same attention, another gradient
+    assert not torch.allclose(grads[0], grads[1])
