@@ -1,6 +1,6 @@
 """End-to-end segmentation time by stage, and peak memory, on one mesh.
 
-    python benchmarks/segment.py [--mesh FILE] [--model MODEL.pt] [--subdivide N] [--repeat 3]
+    python benchmarks/segment.py [--mesh FILE] [--model MODEL.pt] [--subdivide N] [--repeat 3] [--reference REV]
 
 Without ``--mesh`` it takes the PSB test mesh closest to 25K faces from
 ``$ANSEG_DATA`` (or a subdivided synthetic shape when no data is there);
@@ -11,12 +11,18 @@ speed does not depend on what the weights learnt. Features are computed
 without the cache, so their cost is in the figures. Stages are timed by
 wrapping the package functions that implement them; peak memory is the
 process's peak resident set (ru_maxrss) measured in a fresh child process
-per mesh, minus the resident set after imports and loading.
+per mesh, minus the resident set after imports and loading. With
+``--reference`` a second child runs the code of that git revision (a
+temporary worktree) on the same mesh, and every stage is printed beside it
+with the reference's time over ours. Without ``--model`` each child trains
+its own one-epoch model, so the two codes segment with different weights
+(speed does not depend on them).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import resource
 import subprocess
 import sys
@@ -24,7 +30,7 @@ import time
 from collections import defaultdict
 
 import numpy as np
-from stages import print_stages, stage_timers
+from stages import import_from, print_stages, reference_checkout, stage_timers
 
 
 def pick_mesh(path: str | None, subdivide: int):
@@ -74,7 +80,8 @@ def segment_stages() -> dict:
 
 
 def measure(args) -> None:
-    """Runs in a child process: time the stages, then report the peak memory."""
+    """Runs in a child process: time the stages and the peak memory, printed as one JSON line."""
+    import_from(args.code)
     import torch
 
     from anseg.features import compute_groups
@@ -98,10 +105,9 @@ def measure(args) -> None:
         runs.append(totals)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     best = min(runs, key=lambda t: t["total"])
-    print(f"mesh: {name}, {mesh.n_faces} faces; config: {model.config.cycles} cycles at ratio {model.config.ratio}, mode {model.config.mode}")
-    print(f"torch threads: {torch.get_num_threads()}; best of {args.repeat} runs after a warm-up")
-    print_stages(best)
-    print(f"peak resident memory: {peak / 2**20:.2f} GiB (after loading: {baseline / 2**20:.2f} GiB)")
+    what = (f"mesh: {name}, {mesh.n_faces} faces; config: {model.config.cycles} cycles at ratio {model.config.ratio}, "
+            f"mode {model.config.mode}\ntorch threads: {torch.get_num_threads()}; best of {args.repeat} runs after a warm-up")
+    print(json.dumps({"what": what, "stages": best, "peak": peak / 2**20, "baseline": baseline / 2**20}))
 
 
 def main(argv=None) -> None:
@@ -111,13 +117,28 @@ def main(argv=None) -> None:
     parser.add_argument("--subdivide", type=int, default=0, help="split every face in four this many times first")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs (default: 3)")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (default: torch's choice)")
+    parser.add_argument("--reference", help="git revision whose code segments the same mesh beside this one")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--code", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
         measure(args)
         return
-    # a fresh process, so that the peak memory belongs to this mesh alone
-    subprocess.run([sys.executable, __file__, "--child", *(argv if argv is not None else sys.argv[1:])], check=True)
+    own = [f"--subdivide={args.subdivide}", f"--repeat={args.repeat}", f"--threads={args.threads}",
+           *([f"--mesh={args.mesh}"] if args.mesh else []), *([f"--model={args.model}"] if args.model else [])]
+
+    def child(code: str | None) -> dict:  # a fresh process, so that the peak memory belongs to this mesh alone
+        extra = ["--code", code] if code else []
+        done = subprocess.run([sys.executable, __file__, "--child", *own, *extra], check=True, capture_output=True, text=True)
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    with reference_checkout(args.reference) as code:
+        ours = child(None)
+        reference = child(code) if code else None
+    print(ours["what"])
+    print_stages(ours["stages"], reference["stages"] if reference else None, name=args.reference or "reference")
+    print(f"peak resident memory: {ours['peak']:.2f} GiB (after loading: {ours['baseline']:.2f} GiB)"
+          + (f"; {args.reference}: {reference['peak']:.2f} GiB" if reference else ""))
 
 
 if __name__ == "__main__":
