@@ -341,16 +341,16 @@ def forward_levels(network: AttentionSegmenter, inputs: list[dict], to_level: li
 def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentConfig, device="cpu") -> np.ndarray:
     """Class probabilities on the original faces, carried up from the coarsest level (or all levels, or the input level)."""
     model.network.eval()
-    inputs = [model_inputs(model, level, index, len(levels), device) for index, level in enumerate(levels)]
-    maps = [torch.as_tensor(m, device=device) if m is not None else None for m in input_to_level(levels)]
     wanted = {"coarsest": [len(levels) - 1], "finest": [0]}.get(config.combine, range(len(levels)))
     per_level, weights = [], []
     with torch.no_grad():
         if model.network.config.coarse_levels:
+            inputs = [model_inputs(model, level, index, len(levels), device) for index, level in enumerate(levels)]
+            maps = [torch.as_tensor(m, device=device) if m is not None else None for m in input_to_level(levels)]
             outputs = dict(enumerate(forward_levels(model.network, inputs, maps, [False] * len(levels), need_attention=True)))
         else:  # only the levels whose labels count, reusing the pass that computed their attention
             outputs = {index: Output(levels[index].logits, None) if levels[index].logits is not None
-                       else model.network(**inputs[index]) for index in wanted}
+                       else model(**model_inputs(model, levels[index], index, len(levels), device)) for index in wanted}
         for index, out in outputs.items():
             if levels[index].attention is None:
                 levels[index].attention = out.attention.cpu().numpy()
