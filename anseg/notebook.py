@@ -22,6 +22,7 @@ from anseg.experiments import (
     PER_NOTEBOOK,
     REPO,
     PlannedRun,
+    ResultStore,
     environment,
     notebook_runs,
     notebook_settings,
@@ -53,6 +54,7 @@ class NotebookRun:
         self.started = time.time()  # the wall time of the record counts from here
         self.parameters = resolve_categories(parameters)
         self.out = Path(parameters["output_dir"])
+        self.store = ResultStore(self.out)
         self.results_dir, self.figures_dir = self.out / "results", self.out / "figures"
         for folder in (self.results_dir, self.figures_dir):
             folder.mkdir(parents=True, exist_ok=True)
@@ -74,16 +76,16 @@ class NotebookRun:
 
     def has_model(self, result: dict) -> bool:
         """Whether the model of a result is on this machine (a result store can travel without its models)."""
-        return (self.out / "models" / f"{result['key']}.pt").is_file()
+        return self.store.model_path(result["key"]).is_file()
 
     def load_model(self, result: dict) -> Segmenter:
         """The model trained for ``result``, on the CPU (enough to segment a few meshes)."""
         if not self.has_model(result):
             raise FileNotFoundError(
                 f"the model of run {result['key']} is not on this machine (a result store travels without its models): "
-                f"copy it to {self.out / 'models'}, or delete {self.out / 'results' / 'runs' / (result['key'] + '.json')} "
+                f"copy it to {self.store.model_path(result['key'])}, or delete {self.store.result_path(result['key'])} "
                 "to train it here")
-        return Segmenter.load(self.out / "models" / f"{result['key']}.pt")
+        return Segmenter.load(self.store.model_path(result["key"]))
 
     def test_meshes(self, dataset: str, category: str | None, split: int = 0) -> list:
         from anseg import datasets
