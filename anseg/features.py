@@ -82,11 +82,13 @@ from __future__ import annotations
 import hashlib
 import os
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, fields
 from functools import cached_property, partial
 from pathlib import Path
 
+import numba
 import numpy as np
 from numba import njit, prange
 from tqdm.auto import tqdm
@@ -269,6 +271,21 @@ class _Geometry:
     def sdf(self) -> np.ndarray:
         return _shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions, self.settings)
 
+    def sdf_with_agd_beside(self) -> None:
+        """Compute ``sdf`` and ``agd`` at once, the AGD on a second thread while the SDF's rays are cast.
+
+        The heat method's solves (potpourri3d) hold the GIL on one core and
+        our ray caster releases it, so on two or more numba threads the two
+        overlap. Only the cast overlaps: numpy work beside a thread that holds
+        the GIL in long C++ calls would wait for it at every call. The values
+        are the same either way; with one thread (parallel workers) or the
+        large-mesh paths nothing changes.
+        """
+        if numba.get_num_threads() < 2 or self.mesh.n_faces > LARGE_MESH_FACES or {"sdf", "agd"} & self.__dict__.keys():
+            return
+        self.__dict__["sdf"] = _shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions,
+                                               self.settings, beside=lambda: self.agd)
+
     @cached_property
     def agd(self) -> np.ndarray:
         """Per-face AGD; above :data:`LARGE_MESH_FACES` faces, that of the face's face on a uniform collapse.
@@ -365,8 +382,13 @@ def _cone_pattern(n_rays: int, cone_degrees: float) -> np.ndarray:
     return np.stack([sin_polar * np.cos(azimuth), sin_polar * np.sin(azimuth), cos_polar], axis=1)
 
 
-def _shape_diameter(mesh: Mesh, outward: np.ndarray, tangent: np.ndarray, settings: FeatureSettings) -> np.ndarray:
-    """(F,) SDF of every face: a cone of rays from its centroid around the inward normal."""
+def _shape_diameter(mesh: Mesh, outward: np.ndarray, tangent: np.ndarray, settings: FeatureSettings,
+                    beside: Callable[[], object] | None = None) -> np.ndarray:
+    """(F,) SDF of every face: a cone of rays from its centroid around the inward normal.
+
+    ``beside`` runs on a second thread during the first cast of rays (see
+    :meth:`_Geometry.sdf_with_agd_beside`); what it raises is raised here.
+    """
     pattern = _cone_pattern(settings.sdf_rays, settings.sdf_cone_degrees)
     inward = -outward
     frame = np.stack([tangent, np.cross(inward, tangent), inward], axis=1)  # (F, 3 axes, 3)
@@ -378,7 +400,14 @@ def _shape_diameter(mesh: Mesh, outward: np.ndarray, tangent: np.ndarray, settin
         rows = np.arange(start, min(start + chunk, n_faces))
         directions = np.einsum("rk,fkd->frd", pattern, frame[rows]).reshape(-1, 3)
         origins = np.repeat(mesh.face_centroids[rows] + _RAY_OFFSET * inward[rows], n_rays, axis=0)
-        hit_face, t = cast(origins, directions)
+        if beside is None:
+            hit_face, t = cast(origins, directions)
+        else:
+            with ThreadPoolExecutor(1) as pool:
+                job = pool.submit(beside)
+                hit_face, t = cast(origins, directions)
+                job.result()
+            beside = None
         hit = (hit_face >= 0) & (hit_face != np.repeat(rows, n_rays))
         # a ray from inside leaves through a surface facing along it; a front-facing hit means it started outside
         leaving = np.zeros_like(hit)
@@ -498,7 +527,7 @@ def _box_entry(low, high, node, ox, oy, oz, ix, iy, iz, best):
     return near
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)  # nogil: the AGD may run beside it (sdf_with_agd_beside)
 def _cast_rays(origins, directions, corner, edge1, edge2, order, low, high, offsets, sizes, hit_face, hit_t):
     n_rays, n_triangles = len(origins), len(corner)
     top = len(sizes) - 1
@@ -707,6 +736,8 @@ def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bo
     geometry = _Geometry(mesh, cfg)
     # a bar, group by group, only where it is worth watching: a large mesh, and stderr a terminal (tqdm's None)
     quiet = True if not progress or mesh.n_faces < PROGRESS_MIN_FACES else None
+    if all(name in groups or "smooth" in groups for name in ("sdf", "agd")):
+        geometry.sdf_with_agd_beside()
     blocks = {g: np.ascontiguousarray(_GROUP_FUNCTIONS[g](geometry), dtype=np.float32)
               for g in tqdm(groups, desc="features", unit="group", disable=quiet, leave=False)}
     bad = [g for g, block in blocks.items() if not np.isfinite(block).all()]

@@ -85,7 +85,8 @@ class Mesh:
     def _edge_table(self) -> tuple[np.ndarray, np.ndarray]:
         half = np.stack([self.faces, np.roll(self.faces, -1, axis=1)], axis=2).reshape(-1, 2)
         key = np.sort(half, axis=1)
-        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        # one int64 per edge sorts as the rows do, several times faster than np.unique(axis=0)
+        _, first, inverse = np.unique(key[:, 0] * np.int64(self.n_vertices) + key[:, 1], return_index=True, return_inverse=True)
         # renumber so that edges appear in order of first occurrence (MeshCNN's order)
         order = np.argsort(first, kind="stable")
         rank = np.empty_like(order)
@@ -247,7 +248,7 @@ class Mesh:
                 f"{len(degenerate)} zero-area faces (first: {int(degenerate[0])}); "
                 "anseg.repair(mesh) removes them and keeps a map to the input faces"
             )
-        repeated = self.n_faces - len(np.unique(np.sort(self.faces, axis=1), axis=0))
+        repeated = self.n_faces - _count_distinct_rows(np.sort(self.faces, axis=1), self.n_vertices)
         if repeated:
             raise MeshError(f"{repeated} faces repeat another face's three vertices; "
                             "anseg.repair(mesh) (--repair on the command line) drops them and keeps a map to the input faces")
@@ -261,6 +262,14 @@ class Mesh:
                             "anseg.repair(mesh) (--repair on the command line) cuts the sheets apart")
         self._valid = True
         return self
+
+
+def _count_distinct_rows(rows: np.ndarray, n_values: int) -> int:
+    """Number of distinct rows of a (n, 3) array of integers in [0, n_values)."""
+    if n_values < 2**21:  # each row as one int64 (base n_values): a 1-d unique, much faster than axis=0
+        n = np.int64(n_values)
+        return len(np.unique((rows[:, 0] * n + rows[:, 1]) * n + rows[:, 2]))
+    return len(np.unique(rows, axis=0))
 
 
 def _area_tolerance(mesh: Mesh) -> float:

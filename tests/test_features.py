@@ -79,6 +79,25 @@ def test_features_are_deterministic():
     np.testing.assert_array_equal(a, b)
 
 
+def test_agd_beside_the_ray_cast_gives_the_values_of_one_thread(monkeypatch):
+    mesh = blob()
+    monkeypatch.setattr(features.numba, "get_num_threads", lambda: 2)
+    overlapped = features.compute(mesh, features.DEFAULT_GROUPS, cache=False, **FAST)
+    monkeypatch.setattr(features.numba, "get_num_threads", lambda: 1)
+    one_thread = features.compute(mesh, features.DEFAULT_GROUPS, cache=False, **FAST)
+    np.testing.assert_array_equal(overlapped, one_thread)
+
+
+def test_an_agd_failure_beside_the_ray_cast_is_raised(monkeypatch):
+    def fail(*args):
+        raise RuntimeError("heat method failed")
+
+    monkeypatch.setattr(features.numba, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(features, "_average_geodesic_distance", fail)
+    with pytest.raises(RuntimeError, match="heat method failed"):
+        features.compute(blob(), ("sdf", "agd"), cache=False, **FAST)
+
+
 # --------------------------------------------------------- shapes and values
 @pytest.mark.parametrize(
     "mesh", [grid_mesh(6), grid_mesh(4, closed=True), open_cap(), blob()], ids=["grid", "sphere", "open-cap", "blob"]
