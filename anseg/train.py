@@ -77,6 +77,10 @@ class TrainConfig:
     reads the coarse levels' context (:mod:`anseg.model`); its loss then
     weighs as much as the coarse levels' together. ``detach_share``: the
     attention loss does not reach the pooling share directly (:mod:`anseg.model`).
+    ``average_last`` > 0 keeps the average of the weights at the end of each
+    of the last that many epochs instead of the last weights (stochastic
+    weight averaging at the constant rate): the last epoch's weights still
+    move with the step size and the seed.
     """
 
     epochs: int = 60
@@ -89,6 +93,7 @@ class TrainConfig:
     embed_norm: bool = False
     coarse_context: bool = False
     detach_share: bool = False
+    average_last: int = 0
     recollapse_every: int = 5
     attention_weight: float = 1.0
     boundary_rings: int = 2
@@ -98,6 +103,8 @@ class TrainConfig:
     def __post_init__(self):
         if self.epochs < 1 or self.recollapse_every < 1:
             raise ValueError("epochs and recollapse_every must be >= 1")
+        if not 0 <= self.average_last <= self.epochs:
+            raise ValueError(f"average_last must lie in 0..epochs ({self.epochs}), got {self.average_last}")
         if self.schedule not in SCHEDULES:
             raise ValueError(f"schedule must be one of {SCHEDULES}, got {self.schedule!r}")
 
@@ -261,8 +268,12 @@ def fit(
             losses.append(loss.item())
             accuracies.append(accuracy)
         bar.set_postfix(loss=f"{np.mean(losses):.3f}", acc=f"{np.mean(accuracies):.3f}")
+        if epoch >= train.epochs - train.average_last:
+            state.add_to_average()
         if checkpoint:
             state.save(checkpoint, settings, epoch + 1)
+    if train.average_last:
+        network.load_state_dict(state.averaged())
     network.eval()
     return model
 
@@ -272,12 +283,23 @@ class _TrainingState:
 
     Besides the weights, the optimiser and torch's random state: the
     generator that orders the meshes, and the weights the current hierarchy
-    was built with (it is rebuilt only every ``recollapse_every`` epochs).
+    was built with (it is rebuilt only every ``recollapse_every`` epochs),
+    and the running sum of the weights being averaged (``average_last``).
     """
 
     def __init__(self, network, optimizer, order: np.random.Generator):
         self.network, self.optimizer, self.order = network, optimizer, order
         self.rebuilt_with = None  # state dict of the last rebuild; None: the current weights
+        self.weight_sum, self.summed = None, 0  # the averaged epochs' weights (float64), and how many
+
+    def add_to_average(self) -> None:
+        current = {k: v.detach().double() for k, v in self.network.state_dict().items()}
+        self.weight_sum = current if self.weight_sum is None else {k: self.weight_sum[k] + v for k, v in current.items()}
+        self.summed += 1
+
+    def averaged(self) -> dict:
+        reference = self.network.state_dict()
+        return {k: (v / self.summed).to(reference[k].dtype) for k, v in self.weight_sum.items()}
 
     @contextmanager
     def weights_of_last_rebuild(self, rebuilding_now: bool):
@@ -295,7 +317,8 @@ class _TrainingState:
     def save(self, path, settings: dict, epoch: int) -> None:
         payload = {"settings": json.dumps(settings, sort_keys=True), "network": self.network.state_dict(),
                    "optimizer": self.optimizer.state_dict(), "epoch": epoch, "torch_rng": torch.get_rng_state(),
-                   "order_rng": json.dumps(self.order.bit_generator.state), "rebuilt_with": self.rebuilt_with}
+                   "order_rng": json.dumps(self.order.bit_generator.state), "rebuilt_with": self.rebuilt_with,
+                   "weight_sum": self.weight_sum, "summed": self.summed}
         atomic_write(path, lambda tmp: torch.save(payload, tmp))
 
     def resume(self, path, settings: dict) -> int:
@@ -311,6 +334,7 @@ class _TrainingState:
         torch.set_rng_state(payload["torch_rng"])
         self.order.bit_generator.state = json.loads(payload["order_rng"])
         self.rebuilt_with = payload["rebuilt_with"]
+        self.weight_sum, self.summed = payload.get("weight_sum"), payload.get("summed", 0)
         return int(payload["epoch"])
 
 

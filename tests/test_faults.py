@@ -17,7 +17,8 @@ from anseg import datasets, features
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig, fit
 
-SEGMENT, TRAIN = {"cycles": 2, "clusters": 4}, {"epochs": 6, "width": 16, "recollapse_every": 4}
+# every epoch averaged (average_last): the checkpoint carries a partial sum of weights
+SEGMENT, TRAIN = {"cycles": 2, "clusters": 4}, {"epochs": 6, "width": 16, "recollapse_every": 4, "average_last": 6}
 TRAINING = textwrap.dedent(f'''
     import sys, torch
     torch.set_num_threads(1)

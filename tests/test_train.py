@@ -69,6 +69,20 @@ def test_resumes_from_a_checkpoint(split, tmp_path):
     assert torch.load(checkpoint, weights_only=True)["epoch"] == 1
 
 
+def test_average_last_keeps_the_mean_of_the_last_epochs_weights(split):
+    train_set, _ = split
+    run = lambda **kw: fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(width=16, **kw), progress=False)
+    # at a constant rate a 2-epoch run is the first two epochs of a 3-epoch one
+    second, third = run(epochs=2), run(epochs=3)
+    averaged = run(epochs=3, average_last=2)
+    for a, b, mean in zip(second.network.parameters(), third.network.parameters(), averaged.network.parameters()):
+        torch.testing.assert_close(mean, (a.double() + b.double()).div(2).float(), rtol=0, atol=1e-7)
+    for a, b in zip(third.network.parameters(), run(epochs=3, average_last=1).network.parameters()):
+        assert torch.equal(a, b)
+    with pytest.raises(ValueError, match="average_last"):
+        TrainConfig(epochs=3, average_last=4)
+
+
 def test_feature_statistics_leave_the_level_column():
     groups = [{"a": np.array([[1.0, 2.0], [3.0, 2.0]])}]
     mean, std = feature_statistics(groups)
