@@ -691,17 +691,19 @@ def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -
     corner_weight = np.repeat(mesh.face_areas / 3.0, 3)[:, None]
     weighted = np.zeros((mesh.n_vertices, signals.shape[1]))
     np.add.at(weighted, f.ravel(), np.repeat(signals, 3, axis=0) * corner_weight)  # M x
+    systems = [(mass - (radius**2 / 4.0) * laplacian).tocsr() for radius in radii]
+    if mesh.n_vertices <= DIRECT_SOLVE_MAX_VERTICES:
+        # a symmetric ordering and no pivoting keep the factor of an SPD matrix small
+        factor = partial(splu, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        # SuperLU lets go of the GIL for part of its work: the radii factor side by side where threads are allowed
+        with ThreadPoolExecutor(max(1, min(len(systems), numba.get_num_threads()))) as pool:
+            factors = list(pool.map(factor, [system.tocsc() for system in systems]))
+        return [lu.solve(weighted)[f].mean(axis=1) for lu in factors]
+    import pyamg  # here: small meshes, and the GPU machine that trains on them, need no pyamg
+
     out = []
     solution = np.zeros_like(weighted)
-    for radius in radii:
-        system = (mass - (radius**2 / 4.0) * laplacian).tocsr()
-        if mesh.n_vertices <= DIRECT_SOLVE_MAX_VERTICES:
-            # a symmetric ordering and no pivoting keep the factor of an SPD matrix small
-            factor = splu(system.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-            out.append(factor.solve(weighted)[f].mean(axis=1))
-            continue
-        import pyamg  # here: small meshes, and the GPU machine that trains on them, need no pyamg
-
+    for system in systems:
         multigrid = pyamg.smoothed_aggregation_solver(system, symmetry="symmetric")
         for column in range(weighted.shape[1]):
             residuals = []
