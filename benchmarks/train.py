@@ -1,7 +1,7 @@
 """Training time of one category, by stage, beside a reference revision of the code.
 
     python benchmarks/train.py [--dataset psb] [--category Teddy] [--split 0] [--mode nonuniform]
-                               [--epochs 60] [--device auto] [--threads 1] [--reference REV]
+                               [--epochs 60] [--device auto] [--threads 1] [--reference REV] [--pairs N]
 
 Trains on the split's training meshes and evaluates on its test meshes, as
 ``anseg.experiments.train_and_evaluate`` does (nothing is stored; the test
@@ -12,7 +12,8 @@ the gradient steps (the rest of training) and evaluation. ``--threads 1``
 is the setting of the parallel runs. With ``--reference`` the same run is
 made in a fresh process with the code of that git revision (a temporary
 worktree), and every stage is printed beside it with the reference's time
-over ours.
+over ours. ``--pairs N`` runs each code N times, in alternating order, and
+prints medians: on a shared machine one pair can be off by 20 % either way.
 """
 
 from __future__ import annotations
@@ -73,19 +74,34 @@ def main(argv=None) -> None:
     parser.add_argument("--device", default="auto")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
     parser.add_argument("--reference", help="git revision whose code trains the same run beside this one")
+    parser.add_argument("--pairs", type=int, default=1,
+                        help="runs of each code, in alternating order; the figures are medians (default: 1)")
     args = parser.parse_args(argv)
 
     context = multiprocessing.get_context("spawn")  # fresh processes: each imports its own anseg
     with reference_checkout(args.reference) as code:
-        runs = []
-        for checkout in ([None, code] if code else [None]):
-            with ProcessPoolExecutor(1, mp_context=context) as pool:
-                runs.append(pool.submit(measure, args, checkout).result())
-    (ours, accuracy, what), reference = runs[0], (runs[1] if code else None)
-    print(what)
+        runs = {"ours": [], "reference": []}
+        for pair in range(args.pairs):
+            # alternate which code goes first, so that a load that drifts over the run weighs on both alike
+            order = [("ours", None), ("reference", code)] if code else [("ours", None)]
+            for name, checkout in order[:: 1 if pair % 2 == 0 else -1]:
+                with ProcessPoolExecutor(1, mp_context=context) as pool:
+                    runs[name].append(pool.submit(measure, args, checkout).result())
+    ours, accuracy, what = _median_run(runs["ours"])
+    reference = _median_run(runs["reference"]) if code else None
+    print(what + (f"; median of {args.pairs} runs of each code, in alternating order" if args.pairs > 1 else ""))
     print(f"test accuracy (Eq. 5, unit area): {accuracy:.2f} %"
           + (f"; {args.reference}: {reference[1]:.2f} %" if reference else ""))
     print_stages(ours, reference[0] if reference else None, name=args.reference or "reference")
+    if code and args.pairs > 1:
+        ratios = sorted(r[0]["total"] / o[0]["total"] for o, r in zip(runs["ours"], runs["reference"]))
+        print(f"total, reference over ours, pair by pair: {', '.join(f'{x:.2f}x' for x in ratios)}")
+
+
+def _median_run(runs: list[tuple[dict, float, str]]) -> tuple[dict, float, str]:
+    """Each stage's median seconds over the runs; the accuracy and description of the first (every run trains the same)."""
+    stages = {stage: float(np.median([r[0][stage] for r in runs])) for stage in runs[0][0]}
+    return stages, runs[0][1], runs[0][2]
 
 
 if __name__ == "__main__":
