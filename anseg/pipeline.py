@@ -47,7 +47,7 @@ from __future__ import annotations
 import os
 import pickle
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import torch
@@ -64,6 +64,7 @@ from anseg.model import AttentionSegmenter, ModelConfig, Output
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
 COMBINE = ("coarsest", "all", "decay", "finest")
 LOCAL_SCALES = ("unit_area", "relative")
+PASS_SEED_STEP = 1000  # pass p of a test-time ensemble segments with seed + p * this (a collapse uses seed + level)
 
 
 @dataclass
@@ -76,6 +77,10 @@ class SegmentConfig:
     :func:`collapse_weights` clips to ``density_range``); ``combine`` and
     ``local_scale`` are read in the module docstring; ``smooth_weight`` and
     ``concave_discount`` are the graph cut's (:mod:`anseg.graphcut`).
+    ``passes`` > 1 segments the mesh that many times, each pass with other
+    K-means starts and collapse seeds (so other tokens and another
+    hierarchy), and averages their class probabilities before the graph cut:
+    a test-time ensemble of one trained model, at a pass's cost each.
     """
 
     cycles: int = 4
@@ -91,6 +96,7 @@ class SegmentConfig:
     local_scale: str = "unit_area"
     priority: str = "score"
     density_range: float = float("inf")
+    passes: int = 1
     seed: int = 0
 
     def __post_init__(self):
@@ -110,6 +116,8 @@ class SegmentConfig:
             raise ValueError(f"ratio must lie in (0, 1), got {self.ratio}")
         if self.cycles < 0:
             raise ValueError(f"cycles must be >= 0, got {self.cycles}")
+        if self.passes < 1:
+            raise ValueError(f"passes must be >= 1, got {self.passes}")
         self.groups = tuple(self.groups)
 
     @property
@@ -373,13 +381,19 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     """
     config = config or model.config
     mesh.validate()
-    levels = build_levels(mesh, model, config, groups, device, progress)
+    if groups is None:
+        groups = features.compute_groups(mesh, config.groups, cache=True, progress=progress)
+    levels = build_levels(mesh, model, config, groups, device)
     idle = sum(level.record.n_collapses == 0 for level in levels[:-1])
     if idle:
         warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "
                       f"{idle} of them collapsed nothing (the coarsest level has {levels[-1].mesh.n_faces} faces)",
                       collapse.CollapseWarning, stacklevel=2)
     probs = class_probabilities(model, levels, config, device)
+    for index in range(1, config.passes):  # the test-time ensemble (SegmentConfig.passes)
+        again = replace(config, seed=config.seed + index * PASS_SEED_STEP)
+        probs = probs + class_probabilities(model, build_levels(mesh, model, again, groups, device), again, device)
+    probs = probs / config.passes
     raw = probs.argmax(axis=1)
     labels = (graph_cut(mesh, probs, weight=config.smooth_weight, concave_discount=config.concave_discount)
               if config.smooth_weight > 0 else raw)

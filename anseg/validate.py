@@ -17,8 +17,8 @@ Each cell (arm x category x fold x seed) is keyed like an experiment
 (:meth:`Experiment.key`, the fold in the data options) and stored under
 ``<out>/runs/<key>.json`` as it finishes, so a study resumes where it stopped.
 Settings that act only when a trained model segments (:data:`INFERENCE_ONLY`:
-the graph cut's weight, how levels are combined) do not retrain: the cell
-reuses the model of the same training settings, kept under ``<out>/models``
+the graph cut's weight, how levels are combined, test-time passes) do not
+retrain: the cell reuses the model of the same training settings, kept under ``<out>/models``
 (not committed).
 
 The report (printed, and written as CSV under ``<out>``) gives per arm and
@@ -51,7 +51,7 @@ from anseg.train import TrainConfig, evaluate, fit
 
 DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane", "Bird", "Teddy")
 # SegmentConfig fields that change only how a trained model segments, not the training.
-INFERENCE_ONLY = ("smooth_weight", "concave_discount", "combine")
+INFERENCE_ONLY = ("smooth_weight", "concave_discount", "combine", "passes")
 DEFAULT_OUT = Path("results", "validation")
 BOOTSTRAP_SAMPLES = 10_000
 MIN_CATEGORIES = 3  # fewer give a bootstrap interval that is no interval at all

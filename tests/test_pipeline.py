@@ -67,7 +67,7 @@ def test_load_rejects_other_files(tmp_path):
         Segmenter.load(bogus)
 
 
-@pytest.mark.parametrize("bad", [{"mode": "sideways"}, {"ratio": 1.5}, {"cycles": -1}, {"combine": "some"}])
+@pytest.mark.parametrize("bad", [{"mode": "sideways"}, {"ratio": 1.5}, {"cycles": -1}, {"combine": "some"}, {"passes": 0}])
 def test_config_rejects_bad_values(bad):
     with pytest.raises(ValueError):
         SegmentConfig(**bad)
@@ -128,6 +128,17 @@ def test_combine_rules_weigh_the_levels_as_documented(model, shapes):
                 "decay": np.average(per_level, axis=0, weights=[1.0, 0.5, 0.25])}
     for rule, want in expected.items():
         np.testing.assert_allclose(class_probabilities(model, levels, replace(FAST, combine=rule)), want, rtol=1e-5, atol=1e-7)
+
+
+def test_passes_average_the_probabilities_of_segmentations_with_other_seeds(model, shapes):
+    from anseg.pipeline import PASS_SEED_STEP
+
+    mesh = shapes[4].mesh
+    single = [segment(mesh, model, replace(FAST, seed=i * PASS_SEED_STEP)).probabilities for i in range(2)]
+    assert not np.allclose(single[0], single[1])  # another seed, other tokens: the passes differ
+    ensemble = segment(mesh, model, replace(FAST, passes=2))
+    np.testing.assert_allclose(ensemble.probabilities, (single[0] + single[1]) / 2, rtol=1e-12)
+    assert np.array_equal(ensemble.unsmoothed_labels, ensemble.probabilities.argmax(axis=1))
 
 
 def test_every_level_gets_labels_and_attention(model, shapes):
