@@ -139,6 +139,11 @@ PROGRESS_MIN_FACES = 100_000  # a single mesh shows a progress bar from this siz
 POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces in all (about a second of work)
 
 
+def _threads_allowed() -> int:
+    """How many threads this process may compute with: numba's count, which parallel workers set to 1."""
+    return max(1, numba.get_num_threads())
+
+
 @dataclass(frozen=True)
 class FeatureSettings:
     """Knobs of the descriptors; ``compute(..., **settings)`` takes these names.
@@ -281,7 +286,7 @@ class _Geometry:
         are the same either way; with one thread (parallel workers) or the
         large-mesh paths nothing changes.
         """
-        if numba.get_num_threads() < 2 or self.mesh.n_faces > LARGE_MESH_FACES or {"sdf", "agd"} & self.__dict__.keys():
+        if _threads_allowed() < 2 or self.mesh.n_faces > LARGE_MESH_FACES or {"sdf", "agd"} & self.__dict__.keys():
             return
         self.__dict__["sdf"] = _shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions,
                                                self.settings, beside=lambda: self.agd)
@@ -696,7 +701,7 @@ def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -
         # a symmetric ordering and no pivoting keep the factor of an SPD matrix small
         factor = partial(splu, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         # SuperLU lets go of the GIL for part of its work: the radii factor side by side where threads are allowed
-        with ThreadPoolExecutor(max(1, min(len(systems), numba.get_num_threads()))) as pool:
+        with ThreadPoolExecutor(max(1, min(len(systems), _threads_allowed()))) as pool:
             factors = list(pool.map(factor, [system.tocsc() for system in systems]))
         return [lu.solve(weighted)[f].mean(axis=1) for lu in factors]
     import pyamg  # here: small meshes, and the GPU machine that trains on them, need no pyamg
