@@ -79,8 +79,10 @@ def test_average_last_keeps_the_mean_of_the_last_epochs_weights(split):
         torch.testing.assert_close(mean, (a.double() + b.double()).div(2).float(), rtol=0, atol=1e-7)
     for a, b in zip(third.network.parameters(), run(epochs=3, average_last=1).network.parameters()):
         assert torch.equal(a, b)
+    for a, b in zip(run(epochs=2, average_last=5).network.parameters(), run(epochs=2, average_last=2).network.parameters()):
+        assert torch.equal(a, b)  # a run shorter than average_last averages all its epochs
     with pytest.raises(ValueError, match="average_last"):
-        TrainConfig(epochs=3, average_last=4)
+        TrainConfig(average_last=-1)
 
 
 def test_feature_statistics_leave_the_level_column():
