@@ -50,8 +50,9 @@ from anseg.pipeline import SegmentConfig, Segmenter
 from anseg.train import TrainConfig, evaluate, fit
 
 DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane", "Bird", "Teddy")
-# SegmentConfig fields that change only how a trained model segments, not the training.
-INFERENCE_ONLY = ("smooth_weight", "concave_discount", "combine", "passes")
+# SegmentConfig fields that change only how a trained model segments, not the training, each with the value
+# a model's key takes for it: fixed values, not the defaults, so that a new default leaves the stored models found.
+INFERENCE_ONLY = {"smooth_weight": 1.0, "concave_discount": 3.0, "combine": "all", "passes": 1}
 DEFAULT_OUT = Path("results", "validation")
 BOOTSTRAP_SAMPLES = 10_000
 MIN_CATEGORIES = 3  # fewer give a bootstrap interval that is no interval at all
@@ -118,9 +119,8 @@ class Cell:
         return self._experiment(self.configs()[0]).key(self._options())
 
     def training_key(self) -> str:
-        """The key of the trained model: the cell's key with the inference-only settings at their defaults."""
-        defaults = SegmentConfig()
-        segment = replace(self.configs()[0], **{name: getattr(defaults, name) for name in INFERENCE_ONLY})
+        """The key of the trained model: the cell's key with the inference-only settings at fixed values."""
+        segment = replace(self.configs()[0], **INFERENCE_ONLY)
         return self._experiment(segment).key(self._options())
 
     def describe(self) -> str:

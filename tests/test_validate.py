@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from functools import partialmethod
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ import torch
 from anseg import validate
 from anseg.configs import parse_overrides
 from anseg.experiments import Experiment
+from anseg.pipeline import SegmentConfig
 from anseg.validate import Arm, Cell, fold_of, paired_difference
 
 SMALL = {"cycles": 2, "clusters": 4}
@@ -45,6 +47,15 @@ def test_keys_separate_cells_and_inference_settings_share_a_model():
     assert cut.key() != base.key() and cut.training_key() == base.training_key()
     wide = Cell(Arm("wide", train={"width": 128}), "Human", fold=0, seed=0)
     assert wide.training_key() != base.training_key()
+
+
+def test_a_model_key_does_not_move_with_the_inference_defaults(monkeypatch):
+    # a new default graph-cut weight must leave the stored models found, not orphan them
+    cell = Cell(Arm("cut", {"smooth_weight": 2.0}), "Human", fold=0, seed=0)
+    before = cell.training_key()
+    monkeypatch.setattr(SegmentConfig, "__init__", partialmethod(SegmentConfig.__init__, smooth_weight=2.0))
+    assert SegmentConfig().smooth_weight == 2.0
+    assert cell.training_key() == before
 
 
 def test_paired_difference_and_its_interval():
