@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
 
-from anseg import features
+from anseg import collapse, features
 from anseg.mesh import Mesh, MeshError
 from conftest import grid_mesh
 
@@ -253,6 +253,25 @@ def test_agd_of_a_large_mesh_comes_from_its_collapse_and_keys_its_own_cache_entr
     assert features._cache_path(mesh, ("agd",), settings) != path
     assert blob().n_faces <= 4000  # under the threshold nothing changes, the cache entry included
     assert features._cache_path(blob(), ("agd",), settings) == small_path
+
+
+def test_hks_of_a_large_mesh_comes_from_the_collapse_the_agd_uses(monkeypatch):
+    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
+    mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
+    direct = features.compute_groups(mesh, ["hks"], **FAST)["hks"]
+    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
+    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+    collapses = []
+    downsample = collapse.downsample
+    monkeypatch.setattr(collapse, "downsample", lambda *a, **kw: collapses.append(1) or downsample(*a, **kw))
+    both = features.compute_groups(mesh, ["agd", "hks"], **FAST)
+    assert len(collapses) == 1  # one proxy for both groups
+    proxy = both["hks"]
+    assert proxy.shape == direct.shape and not np.array_equal(proxy, direct)
+    # within 2 % everywhere (log values); the pattern is kept where heat spreads beyond a proxy face (t >= 0.008)
+    assert np.median(np.abs(proxy - direct), axis=0).max() < 0.02
+    for column in range(2, direct.shape[1]):
+        assert np.corrcoef(proxy[:, column], direct[:, column])[0, 1] > 0.97
 
 
 def test_second_call_reads_the_cache(cache_root, monkeypatch):
