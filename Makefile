@@ -5,7 +5,9 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 # make reproduce DATA=synthetic (default: no download, minutes on a CPU, writes runs/synthetic)
 # make reproduce DATA=real      (the benchmark archives under $$ANSEG_DATA; writes figures/ and results/)
+# make reproduce CONFIG=paper   (every run from a named configuration of anseg.configs instead of the plan's)
 DATA ?= synthetic
+CONFIG ?=
 
 .PHONY: reproduce test clean
 
@@ -17,7 +19,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 reproduce: $(STAMP)
-	$(BIN)/python -m anseg.reproduce --data $(DATA)
+	$(BIN)/python -m anseg.reproduce --data $(DATA) $(if $(CONFIG),--config $(CONFIG))
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -186,10 +186,11 @@ def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike
 
 
 # Parameters shared by every notebook, per run kind. Notebook-specific ones follow.
+# ``config`` names the configuration of anseg.configs that every run of the notebooks starts from.
 COMMON = {
-    "real": {"dataset": "psb", "epochs": 60, "seed": 0, "device": "auto", "smoke": False},
-    "synthetic": {"dataset": "synthetic", "epochs": 12, "seed": 0, "device": "auto", "smoke": False},
-    "smoke": {"dataset": "synthetic", "epochs": 2, "seed": 0, "device": "cpu", "smoke": True},
+    "real": {"dataset": "psb", "config": "default", "epochs": 60, "seed": 0, "device": "auto", "smoke": False},
+    "synthetic": {"dataset": "synthetic", "config": "default", "epochs": 12, "seed": 0, "device": "auto", "smoke": False},
+    "smoke": {"dataset": "synthetic", "config": "default", "epochs": 2, "seed": 0, "device": "cpu", "smoke": True},
 }
 
 SYNTHETIC_CATEGORIES = ["figure", "vessel"]
@@ -253,14 +254,20 @@ TABLE_IV_ROWS = {
 }
 
 
-def notebook_settings(epochs: int, seed: int, device: str, smoke: bool) -> tuple[dict, dict, TrainConfig]:
-    """Data set options, SegmentConfig overrides and TrainConfig of a notebook run (its setup cell does the same).
+def notebook_settings(p: dict) -> tuple[dict, dict, TrainConfig]:
+    """Data set options, SegmentConfig overrides and TrainConfig of a notebook run with parameters ``p``.
 
-    A smoke run only checks that a notebook runs from end to end: 4 shapes, a tiny model, 2 cycles.
+    The settings start from the named configuration ``p["config"]``
+    (:mod:`anseg.configs`). A smoke run only checks that a notebook runs from
+    end to end: 4 shapes, a tiny model, 2 cycles.
     """
-    shape_options = {"n_shapes": 4} if smoke else {}
-    segment_options = {"cycles": 2, "clusters": 4} if smoke else {}
-    train = TrainConfig(epochs=epochs, seed=seed, device=device, **({"width": 16, "depth": 1} if smoke else {}))
+    from anseg.configs import overrides
+
+    segment_options, train_options = overrides(p["config"])
+    shape_options = {"n_shapes": 4} if p["smoke"] else {}
+    segment_options = {**segment_options, **({"cycles": 2, "clusters": 4} if p["smoke"] else {})}
+    train = TrainConfig(**{**train_options, "epochs": p["epochs"], "seed": p["seed"], "device": p["device"],
+                           **({"width": 16, "depth": 1} if p["smoke"] else {})})
     return shape_options, segment_options, train
 
 
@@ -327,28 +334,29 @@ def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
     raise ValueError(f"no plan for notebook {name}")
 
 
-def planned_experiment(run: PlannedRun, epochs: int, seed: int, device: str, smoke: bool) -> tuple[Experiment, dict]:
-    """The Experiment of a planned run under a notebook's settings, and its data set options."""
+def planned_experiment(run: PlannedRun, p: dict) -> tuple[Experiment, dict]:
+    """The Experiment of a planned run under a notebook's parameters ``p``, and its data set options."""
     from dataclasses import replace
 
-    shape_options, segment_options, train = notebook_settings(epochs, seed, device, smoke)
+    shape_options, segment_options, train = notebook_settings(p)
     experiment = Experiment(run.dataset, run.category, run.split, SegmentConfig(**{**segment_options, **run.segment}),
                             replace(train, **run.train))
     return experiment, (shape_options if run.dataset == "synthetic" else {})
 
 
-def planned_experiments(kind: str, only: list[str] | None = None) -> list[tuple[Experiment, dict]]:
+def planned_experiments(kind: str, only: list[str] | None = None, config: str | None = None) -> list[tuple[Experiment, dict]]:
     """Every (Experiment, data set options) the notebooks of ``kind`` train, without repeats.
 
-    In notebook order, and inside a notebook the costliest runs first.
+    In notebook order, and inside a notebook the costliest runs first; with
+    ``config``, from that named configuration instead of the run kind's.
     """
     plan = {}
     for name in selected_notebooks(only):
-        p = notebook_parameters(name, kind)
+        p = {**notebook_parameters(name, kind), **({"config": config} if config else {})}
         # costliest first: attention-driven runs collapse every few epochs, "none" never does
         runs = sorted(notebook_runs(name, p), key=lambda run: DOWNSAMPLING_MODES.index(run.segment.get("mode", "nonuniform")))
         for run in runs:
-            experiment, extra = planned_experiment(run, p["epochs"], p["seed"], p["device"], p["smoke"])
+            experiment, extra = planned_experiment(run, p)
             plan.setdefault(experiment.key(extra), (experiment, extra))
     return list(plan.values())
 

@@ -60,14 +60,14 @@ class NotebookRun:
             folder.mkdir(parents=True, exist_ok=True)
         p = self.parameters
         self.synthetic, self.smoke = p["dataset"] == "synthetic", p["smoke"]
-        self.shape_options, self.segment_options, self.train = notebook_settings(p["epochs"], p["seed"], p["device"], p["smoke"])
+        self.shape_options, self.segment_options, self.train = notebook_settings(p)
         self.planned = notebook_runs(f"{name}.ipynb", p)
         self.record = self._record(parameters)
 
     def result(self, run: PlannedRun) -> dict:
         """The stored result of a planned run, or a fresh one trained and evaluated here (and stored)."""
         p = self.parameters
-        experiment, options = planned_experiment(run, p["epochs"], p["seed"], p["device"], p["smoke"])
+        experiment, options = planned_experiment(run, self.parameters)
         return run_experiment(experiment, out_dir=self.out, progress=False, **options)
 
     def results(self) -> list[tuple[PlannedRun, dict]]:

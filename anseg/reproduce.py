@@ -25,6 +25,7 @@ import sys
 import time
 from pathlib import Path
 
+from anseg.configs import NAMED
 from anseg.experiments import (
     COMMON,
     PER_NOTEBOOK,
@@ -40,8 +41,9 @@ from anseg.headline import update_readme
 NOTEBOOKS = REPO / "notebooks"
 
 
-def run(kind: str, only: list[str] | None = None, out: Path | None = None, kernel: str | None = None) -> int:
-    """Execute the notebooks of one run kind; returns the number that failed."""
+def run(kind: str, only: list[str] | None = None, out: Path | None = None, kernel: str | None = None,
+        config: str | None = None) -> int:
+    """Execute the notebooks of one run kind (with ``config``, from that named configuration); returns the number that failed."""
     import papermill
 
     executed_dir, results_root = output_dirs(kind, out)
@@ -50,7 +52,8 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
     failed = 0
     for name in names:
         # relative to the notebooks' folder (their working directory): executed notebooks name no machine's paths
-        params = {**COMMON[kind], **PER_NOTEBOOK[name][kind], "output_dir": os.path.relpath(results_root, NOTEBOOKS)}
+        params = {**COMMON[kind], **PER_NOTEBOOK[name][kind], **({"config": config} if config else {}),
+                  "output_dir": os.path.relpath(results_root, NOTEBOOKS)}
         started = time.time()
         print(f"[anseg] {name} ({kind}) ...", flush=True)
         try:
@@ -79,6 +82,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="*", help="run only the notebooks whose file name contains one of these strings")
     parser.add_argument("--out", type=Path, help="write here instead of the default folder of the run kind")
     parser.add_argument("--kernel", default=None, help="Jupyter kernel name (default: the notebook's own)")
+    parser.add_argument("--config", choices=list(NAMED),
+                        help="the named configuration every run starts from (default: the plan's for the run kind)")
     parser.add_argument("--train-only", action="store_true",
                         help="train the notebooks' configurations into the result store; run no notebook")
     parser.add_argument("--workers", type=int, default=1,
@@ -99,11 +104,11 @@ def main(argv: list[str] | None = None) -> int:
     kind = "smoke" if args.smoke else args.data
     if args.train_only:
         store = ResultStore(output_dirs(kind, args.out)[1])
-        failed = run_plan(planned_experiments(kind, args.only), store, args.workers, args.scheduler, args.backend,
+        failed = run_plan(planned_experiments(kind, args.only, args.config), store, args.workers, args.scheduler, args.backend,
                           stop_after=args.stop_after and 60 * args.stop_after)
         what = "run(s)"
     else:
-        failed = run(kind, args.only, args.out, args.kernel)
+        failed = run(kind, args.only, args.out, args.kernel, args.config)
         what = "notebook(s)"
     if failed:
         print(f"[anseg] {failed} {what} failed", file=sys.stderr)

@@ -93,6 +93,15 @@ def test_real_plan_covers_every_table_once():
         (c, m, d) for c in ("Human", "Teddy", "Airplane") for m, d in rows)
 
 
+def test_a_named_configuration_is_the_start_of_every_planned_run():
+    paper = planned_experiments("smoke", only=["table4"], config="paper")
+    assert paper and all(e.segment.combine == "coarsest" and e.train.attention_weight == 0.0 for e, _ in paper)
+    assert all(e.segment.cycles == 2 and e.train.width == 16 for e, _ in paper)  # the smoke settings on top
+    default = planned_experiments("smoke", only=["table4"])
+    assert {e.key(o) for e, o in paper}.isdisjoint(e.key(o) for e, o in default)
+    assert sorted(e.segment.mode for e, _ in paper) == sorted(e.segment.mode for e, _ in default)
+
+
 def test_readme_headline_is_the_committed_results():
     if not (REPO / "results" / "table4_ablation.csv").is_file():
         pytest.skip("no real-run results committed yet (results/table4_ablation.csv)")
