@@ -255,6 +255,20 @@ def test_agd_of_a_large_mesh_comes_from_its_collapse_and_keys_its_own_cache_entr
     assert features._cache_path(blob(), ("agd",), settings) == small_path
 
 
+def test_hks_with_our_spd_factor_is_eigsh_with_its_own():
+    import igl
+    from scipy.sparse.linalg import eigsh
+
+    mesh = blob()
+    ours = features._heat_kernel_signature(mesh, 16, np.array(features.HKS_TIMES))
+    stiffness = -igl.cotmatrix(mesh.vertices, mesh.faces)
+    mass = igl.massmatrix(mesh.vertices, mesh.faces, igl.MASSMATRIX_TYPE_VORONOI)
+    values, vectors = eigsh(stiffness.tocsc(), k=16, M=mass.tocsc(), sigma=-1e-3, which="LM")
+    decay = np.exp(-np.outer(np.maximum(values, 0.0), features.HKS_TIMES))
+    theirs = np.log(np.maximum((vectors**2) @ decay * mesh.face_areas.sum() / decay.sum(axis=0), 1e-12))
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-9)
+
+
 def test_hks_of_a_large_mesh_comes_from_the_collapse_the_agd_uses(monkeypatch):
     sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
     mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
