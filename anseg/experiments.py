@@ -186,9 +186,11 @@ def run_experiment(experiment: Experiment, root=None, out_dir: str | os.PathLike
 
 
 # Parameters shared by every notebook, per run kind. Notebook-specific ones follow.
-# ``config`` names the configuration of anseg.configs that every run of the notebooks starts from.
+# ``config`` names the configuration of anseg.configs that every run of the notebooks starts from. The real
+# run stays on "v1", the defaults its committed tables were trained with, until it is regenerated with the
+# validated default (``--config default``: every real run trains again, under new keys).
 COMMON = {
-    "real": {"dataset": "psb", "config": "default", "epochs": 60, "seed": 0, "device": "auto", "smoke": False},
+    "real": {"dataset": "psb", "config": "v1", "epochs": 60, "seed": 0, "device": "auto", "smoke": False},
     "synthetic": {"dataset": "synthetic", "config": "default", "epochs": 12, "seed": 0, "device": "auto", "smoke": False},
     "smoke": {"dataset": "synthetic", "config": "default", "epochs": 2, "seed": 0, "device": "cpu", "smoke": True},
 }

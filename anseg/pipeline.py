@@ -16,10 +16,13 @@ Choices this module makes (see DESIGN.md):
   (computed on the training meshes), so that a mesh is read the same way at
   training and at test time.
 * Features: the paper's groups plus ``smooth`` (SDF, curvature and AGD
-  diffused over a few geodesic radii). Wide-neighbourhood features are what
+  diffused over a few geodesic radii) and ``hks`` (heat kernel signatures:
+  where a face sits on the whole shape). Wide-neighbourhood features are what
   lifted a gradient-boosting baseline most on PSB split 0 (Teddy 94.0 ->
   97.0 %, Airplane 82.1 -> 87.8 %, Human 76.6 -> 80.5 %, benchmarks/features.py
-  study), at 0.12 s per 25K faces.
+  study), at 0.12 s per 25K faces; ``hks`` was adopted by cross-validation on
+  training meshes (:mod:`anseg.validate`), like every default of
+  :class:`SegmentConfig` and :class:`~anseg.train.TrainConfig`.
 * Labels: by default the class probabilities of every level are carried up
   to the original faces and averaged (``combine="all"``). The paper labels
   the coarsest level only (``combine="coarsest"``); on the synthetic figures
@@ -38,8 +41,8 @@ Choices this module makes (see DESIGN.md):
   standardise them. ``"relative"`` reads them against the level's own
   median edge length instead (logged, per length: log(e_k / l^k) / k), so
   that every level is on the level-0 scale and a giant face shows as a few
-  units, not thousands; ``"unit_area"`` keeps the values as the cache holds
-  them.
+  units, not thousands (the default); ``"unit_area"`` keeps the values as
+  the cache holds them (the paper's reading and ``v1``).
 """
 
 from __future__ import annotations
@@ -69,7 +72,10 @@ PASS_SEED_STEP = 1000  # pass p of a test-time ensemble segments with seed + p *
 
 @dataclass
 class SegmentConfig:
-    """The switches of Algorithm 1 (the paper's defaults: 4 cycles at ratio 0.5).
+    """The switches of Algorithm 1 (the paper's 4 cycles at ratio 0.5), at the validated defaults.
+
+    :mod:`anseg.configs` names the older readings: ``paper`` and ``v1`` (the
+    defaults before validation, which the committed tables ran with).
 
     ``once_per_pass`` is passed to :func:`anseg.collapse.downsample` (off by
     default, as in the committed results), and so is ``priority`` (the
@@ -86,16 +92,16 @@ class SegmentConfig:
     cycles: int = 4
     ratio: float = 0.5
     mode: str = "nonuniform"
-    groups: tuple[str, ...] = features.DEFAULT_GROUPS + ("smooth",)
+    groups: tuple[str, ...] = features.DEFAULT_GROUPS + ("smooth", "hks")
     clusters: int = 8
     patch_size: int = 16
-    smooth_weight: float = 1.0
+    smooth_weight: float = 2.0
     concave_discount: float = DEFAULT_CONCAVE_DISCOUNT
     combine: str = "all"
     once_per_pass: bool = False
-    local_scale: str = "unit_area"
-    priority: str = "score"
-    density_range: float = float("inf")
+    local_scale: str = "relative"
+    priority: str = "weighted"
+    density_range: float = 8.0
     passes: int = 1
     seed: int = 0
 

@@ -95,7 +95,7 @@ class TrainConfig:
     embed_norm: bool = False
     coarse_context: bool = False
     detach_share: bool = False
-    average_last: int = 0
+    average_last: int = 20
     recollapse_every: int = 5
     attention_weight: float = 1.0
     boundary_rings: int = 2

@@ -19,7 +19,15 @@ def test_paper_is_the_plain_reading():
     segment, train = configuration("paper")
     assert segment.groups == DEFAULT_GROUPS and "smooth" not in segment.groups
     assert segment.combine == "coarsest" and segment.priority == "score" and segment.local_scale == "unit_area"
-    assert train.attention_weight == 0.0 and not train.embed_norm
+    assert segment.density_range == float("inf") and segment.smooth_weight == 1.0
+    assert train.attention_weight == 0.0 and not train.embed_norm and train.average_last == 0
+
+
+def test_v1_is_the_reading_the_committed_tables_ran_with():
+    segment, train = configuration("v1")
+    assert segment.groups == DEFAULT_GROUPS + ("smooth",) and segment.local_scale == "unit_area"
+    assert segment.priority == "score" and segment.smooth_weight == 1.0 and train.average_last == 0
+    assert configuration("default") != (segment, train)
 
 
 def test_overrides_go_on_top_of_a_named_configuration():

@@ -10,6 +10,7 @@ import torch
 from sklearn.linear_model import LogisticRegression
 
 from anseg import datasets, features
+from anseg.configs import configuration
 from anseg.metrics import pooled_accuracy
 from anseg.pipeline import SegmentConfig
 from anseg.experiments import Experiment
@@ -71,7 +72,8 @@ def test_resumes_from_a_checkpoint(split, tmp_path):
 
 def test_average_last_keeps_the_mean_of_the_last_epochs_weights(split):
     train_set, _ = split
-    run = lambda **kw: fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(width=16, **kw), progress=False)
+    run = lambda **kw: fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(width=16, **{"average_last": 0, **kw}),
+                           progress=False)
     # at a constant rate a 2-epoch run is the first two epochs of a 3-epoch one
     second, third = run(epochs=2), run(epochs=3)
     averaged = run(epochs=3, average_last=2)
@@ -97,10 +99,17 @@ def test_rejects_empty_training_set():
         fit([], ["a"], SMALL)
 
 
+def _v1_human() -> Experiment:
+    segment, train = configuration("v1")
+    return Experiment("psb", "Human", 0, segment, replace(train, epochs=60, seed=0, device="auto"))
+
+
 def test_experiment_keys_of_committed_results_stay_put():
-    # results/runs/b1e98aa45e21a4b6.json is Table IV's nonuniform Human run: a key change would orphan it
-    experiment = Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(epochs=60, seed=0, device="auto"))
+    # results/runs/b1e98aa45e21a4b6.json is Table IV's nonuniform Human run, trained with the v1 defaults:
+    # a key change would orphan it (and the new defaults are a new experiment, on purpose)
+    experiment = _v1_human()
     assert experiment.key() == "b1e98aa45e21a4b6"
+    assert Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(epochs=60, seed=0)).key() != experiment.key()
     changed = Experiment("psb", "Human", 0, SegmentConfig(once_per_pass=True), experiment.train)
     assert changed.key() != experiment.key()
     assert Experiment("psb", "Human", 1, experiment.segment, experiment.train).key() != experiment.key()
@@ -116,9 +125,9 @@ def test_trained_on_names_the_gpu_or_the_cpu_count():
 
 def test_settings_added_later_change_the_key_only_away_from_their_old_value():
     # at the old value they stay out of the key (the pinned key above); any other value is a new experiment
-    base = Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig())
-    assert Experiment("psb", "Human", 0, SegmentConfig(local_scale="relative"), TrainConfig()).key() != base.key()
-    assert Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(embed_norm=True)).key() != base.key()
+    base = _v1_human()
+    assert replace(base, segment=replace(base.segment, local_scale="relative")).key() != base.key()
+    assert replace(base, train=replace(base.train, embed_norm=True)).key() != base.key()
 
 
 def test_depth_zero_trains_only_without_downsampling(split):
@@ -159,7 +168,7 @@ def test_a_change_of_feature_code_changes_every_key(monkeypatch):
 
     from anseg import features
 
-    base = Experiment("psb", "Human", 0, SegmentConfig(), TrainConfig(epochs=60, seed=0, device="auto"))
+    base = _v1_human()
     monkeypatch.setattr(features, "FEATURES_VERSION", features.FEATURES_VERSION + 1)
     assert base.key() != "b1e98aa45e21a4b6"
     monkeypatch.undo()
