@@ -16,7 +16,10 @@ model's settings, e.g. another collapse priority), and for every level this prin
 * ``giant``: the largest number of input faces that one face of the level
   stands for, and ``giant_share``: the share of input faces that sit in a
   face standing for more than 8x the level's mean (weighted by input faces,
-  so a few giant faces cannot hide among many small ones);
+  so a few giant faces cannot hide among many small ones); ``vs uniform``:
+  the largest over meshes of the level's largest face over the largest face
+  of the uniform hierarchy of the same mesh and level (the issue's giant-face
+  criterion: at most 8);
 * ``auc``: the ROC AUC of the attention for faces within 2 rings of another
   label (the pooled ground truth) against the rest, on the levels that are
   collapsed (0.5: attention says nothing about boundaries).
@@ -114,18 +117,21 @@ def main(argv=None) -> None:
         held_out = [m for m in meshes if m.name in set(cell["held_out"])]
         variants = {model.config.mode: {}, "uniform": {"mode": "uniform"}}
         variants.update({text: parse_overrides(text)[0] for text in args.variants})
-        for name, overrides in variants.items():
-            config = replace(model.config, **overrides)
-            per_mesh = [level_statistics(item, model, config) for item in held_out]
-            for index in range(len(per_mesh[0])):
-                values = {k: _mean([rows[index][k] for rows in per_mesh]) for k in per_mesh[0][index] if k != "level"}
+        per_mesh = {name: [level_statistics(item, model, replace(model.config, **overrides)) for item in held_out]
+                    for name, overrides in variants.items()}
+        for name, meshes_rows in per_mesh.items():
+            for index in range(len(meshes_rows[0])):
+                values = {k: _mean([rows[index][k] for rows in meshes_rows]) for k in meshes_rows[0][index] if k != "level"}
+                # the criterion is per mesh: this hierarchy's largest face over the uniform one's, same mesh and level
+                values["giant_vs_uniform"] = max(rows[index]["giant"] / uniform[index]["giant"]
+                                                 for rows, uniform in zip(meshes_rows, per_mesh["uniform"]))
                 table.append({"arm": cell["arm"], "category": cell["category"], "hierarchy": name, "level": index, **values})
         if args.render and path == args.cells[0]:
             render_hierarchies(held_out[0], model, variants, args.render)
-    print(f"{'arm':<16} {'category':<10} {'hierarchy':<18} lvl  faces    z99     zmax   giant  share  auc")
+    print(f"{'arm':<16} {'category':<10} {'hierarchy':<18} lvl  faces    z99     zmax   giant  share  auc  vs uniform")
     for r in table:
         print(f"{r['arm']:<16} {r['category']:<10} {r['hierarchy']:<18} {r['level']:>3} {r['faces']:6.0f} {r['z99']:7.1f} "
-              f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['auc']:5.2f}")
+              f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['auc']:5.2f} {r['giant_vs_uniform']:6.2f}")
     if args.out:
         args.out.write_text(csv_text(table))
 
