@@ -376,8 +376,11 @@ def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
         loaded = trimesh.load(path, process=False, maintain_order=True, force="mesh")
     except Exception as exc:  # trimesh raises many types on bad files
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from exc
-    faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64).reshape(-1, 3)
-    vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64).reshape(-1, 3)
+    try:  # trimesh hands back a ragged array for a vertex line short of a coordinate
+        faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64).reshape(-1, 3)
+        vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64).reshape(-1, 3)
+    except ValueError as exc:
+        raise MeshError(f"{path}: cannot read mesh (a vertex or face without 3 entries: {exc})") from None
     mesh = Mesh(vertices, faces)
     if validate:
         try:

@@ -86,6 +86,10 @@ def test_load_errors(tmp_path):
         load_mesh(bad)
     with pytest.raises(MeshError, match="unsupported format"):
         load_mesh(write_off(tmp_path / "m.stl", TETRA_V, TETRA_F))
+    ragged = tmp_path / "ragged.obj"  # a vertex line short of a coordinate (found by the reader fuzz test)
+    ragged.write_text("v 0 0 0\nv 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n")
+    with pytest.raises(MeshError, match="without 3 entries"):
+        load_mesh(ragged)
 
 
 @pytest.mark.parametrize(
