@@ -395,6 +395,11 @@ _MIN_TEXT_BYTES = {"vertex": 6, "face": 8}
 _MIN_BINARY_BYTES = {"vertex": 12, "face": 13}
 
 
+def _is_count(word: str) -> bool:
+    """ASCII digits only: str.isdigit() also takes characters such as '²' that int() refuses."""
+    return word.isascii() and word.isdigit()
+
+
 def _check_declared_counts(path: Path) -> None:
     """Refuse an OFF or PLY header that declares more elements than the file can hold, before anything is allocated."""
     size = path.stat().st_size
@@ -406,12 +411,12 @@ def _check_declared_counts(path: Path) -> None:
         words = " ".join(line for line in lines if line).split()
         if words and words[0].upper().endswith("OFF"):
             words = words[1:]
-        if len(words) >= 2 and all(w.isdigit() for w in words[:2]):
+        if len(words) >= 2 and all(_is_count(w) for w in words[:2]):
             counts = {"vertex": int(words[0]), "face": int(words[1])}
     elif path.suffix.lower() == ".ply":
         for line in lines:
             parts = line.split()
-            if len(parts) == 3 and parts[0] == "element" and parts[1] in minimum and parts[2].isdigit():
+            if len(parts) == 3 and parts[0] == "element" and parts[1] in minimum and _is_count(parts[2]):
                 counts[parts[1]] = int(parts[2])
             elif len(parts) >= 2 and parts[0] == "format" and parts[1].startswith("binary"):
                 minimum = _MIN_BINARY_BYTES

@@ -90,6 +90,10 @@ def test_load_errors(tmp_path):
     ragged.write_text("v 0 0 0\nv 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n")
     with pytest.raises(MeshError, match="without 3 entries"):
         load_mesh(ragged)
+    superscript = tmp_path / "superscript.off"  # a header count that str.isdigit() takes and int() refuses
+    superscript.write_bytes(b"OFF\n4 2\xb2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 2 3\n")
+    with pytest.raises(MeshError):
+        load_mesh(superscript)
 
 
 @pytest.mark.parametrize(
