@@ -66,7 +66,6 @@ class NotebookRun:
 
     def result(self, run: PlannedRun) -> dict:
         """The stored result of a planned run, or a fresh one trained and evaluated here (and stored)."""
-        p = self.parameters
         experiment, options = planned_experiment(run, self.parameters)
         return run_experiment(experiment, out_dir=self.out, progress=False, **options)
 
