@@ -266,7 +266,8 @@ def test_hks_with_our_spd_factor_is_eigsh_with_its_own():
     values, vectors = eigsh(stiffness.tocsc(), k=16, M=mass.tocsc(), sigma=-1e-3, which="LM")
     decay = np.exp(-np.outer(np.maximum(values, 0.0), features.HKS_TIMES))
     theirs = np.log(np.maximum((vectors**2) @ decay * mesh.face_areas.sum() / decay.sum(axis=0), 1e-12))
-    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-9)
+    # ours asks for eigenvalues to HKS_TOLERANCE only: the same signature to well under float32 resolution
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-6)
 
 
 def test_hks_of_a_large_mesh_comes_from_the_collapse_the_agd_uses(monkeypatch):
