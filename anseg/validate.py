@@ -249,6 +249,32 @@ def paired_difference(table: dict, arm: str, baseline: str, samples: int = BOOTS
             "categories": len(per_category), "cells": int(sum(len(d) for d in per_category))}
 
 
+def seed_spread(table: dict) -> list[dict]:
+    """How far each arm moves from seed to seed, over the (category, fold) cells run with two seeds or more.
+
+    Per arm: the median and the largest range (max - min over seeds) of a
+    cell's accuracy, and the range of the suite mean (categories averaged,
+    each over its folds) from seed to seed, on the cells every seed has.
+    """
+    rows = []
+    for arm in sorted({k[0] for k in table}):
+        by_cell: dict[tuple[str, int], dict[int, float]] = {}
+        for (name, category, fold, seed), value in table.items():
+            if name == arm:
+                by_cell.setdefault((category, fold), {})[seed] = value
+        seeds = sorted({s for values in by_cell.values() for s in values})
+        shared = {cell: values for cell, values in by_cell.items() if len(values) == len(seeds)}
+        if len(seeds) < 2 or not shared:
+            continue
+        ranges = [max(v.values()) - min(v.values()) for v in shared.values()]
+        categories = sorted({category for category, _ in shared})
+        suite = [np.mean([np.mean([v[s] for (c, _), v in shared.items() if c == category]) for category in categories])
+                 for s in seeds]
+        rows.append({"arm": arm, "seeds": len(seeds), "cells": len(shared), "median_range": float(np.median(ranges)),
+                     "max_range": float(np.max(ranges)), "suite_mean_range": float(np.ptp(suite))})
+    return rows
+
+
 def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict]]:
     """Per arm and category (and the suite mean) rows, and each arm's paired comparison with the baseline."""
     table = accuracy_table(results)
@@ -274,10 +300,11 @@ def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict
 
 
 def write_report(results: list[dict], baseline: str, out: str | Path, study: str) -> str:
-    """Write ``<out>/<study>_accuracy.csv`` and ``<out>/<study>_paired.csv``; return the report as text."""
+    """Write ``<out>/<study>_accuracy.csv``, ``_paired.csv`` (and ``_seeds.csv`` with several seeds); return the report as text."""
     rows, comparisons = summarize(results, baseline)
+    spread = seed_spread(accuracy_table(results))
     out = Path(out)
-    for name, table in (("accuracy", rows), ("paired", comparisons)):
+    for name, table in (("accuracy", rows), ("paired", comparisons), ("seeds", spread)):
         if table:
             text = csv_text(table)
             atomic_write(out / f"{study}_{name}.csv", lambda tmp, text=text: tmp.write_text(text))
@@ -294,6 +321,10 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
                 verdict = "adopt" if c["low"] > 0 else ("worse" if c["high"] < 0 else "no evidence")
             lines.append(f"  {c['arm']:<24} {c['mean']:+6.2f} [{c['low']:+6.2f}, {c['high']:+6.2f}] "
                          f"({c['categories']} categories, {c['cells']} cells): {verdict}")
+    if spread:
+        lines.append("\nfrom seed to seed (range over seeds: of one cell's accuracy, median and largest; of the suite mean):")
+        lines += [f"  {r['arm']:<24} {r['median_range']:5.2f} median, {r['max_range']:5.2f} largest over {r['cells']} cells; "
+                  f"suite mean {r['suite_mean_range']:5.2f} ({r['seeds']} seeds)" for r in spread]
     return "\n".join(lines)
 
 

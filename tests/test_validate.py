@@ -88,6 +88,21 @@ def test_report_names_the_verdict(tmp_path):
     assert "adopt" in validate.write_report(more, "default", tmp_path, "demo4")
 
 
+def test_seed_spread_reads_each_cell_across_its_seeds(tmp_path):
+    # cell (A, 0) moves by 4 from seed 0 to 1, (A, 1) by 2, (B, 0) by 0
+    values = {("A", 0): (70, 74), ("A", 1): (80, 82), ("B", 0): (77, 77)}
+    results = [{"arm": "default", "category": c, "fold": f, "seed": s, "accuracy": {"unit_area": v[s] / 100}}
+               for (c, f), v in values.items() for s in (0, 1)]
+    results.append({"arm": "default", "category": "B", "fold": 1, "seed": 0, "accuracy": {"unit_area": 0.1}})  # one seed: left out
+    (row,) = validate.seed_spread(validate.accuracy_table(results))
+    assert row["cells"] == 3 and row["seeds"] == 2
+    assert row["median_range"] == pytest.approx(2.0) and row["max_range"] == pytest.approx(4.0)
+    assert row["suite_mean_range"] == pytest.approx(1.5)  # A: 75 then 78, B: 77 then 77 -> 76.0 and 77.5
+    text = validate.write_report(results, "default", tmp_path, "seeds")
+    assert "from seed to seed" in text and (tmp_path / "seeds_seeds.csv").is_file()
+    assert validate.seed_spread(validate.accuracy_table([r for r in results if r["seed"] == 0])) == []
+
+
 @pytest.mark.slow
 def test_a_study_stores_its_cells_and_resumes_without_training(tmp_path, monkeypatch):
     torch.set_num_threads(1)
