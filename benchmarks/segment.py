@@ -1,14 +1,16 @@
 """End-to-end segmentation time by stage, and peak memory, on one mesh.
 
-    python benchmarks/segment.py [--mesh FILE] [--model MODEL.pt] [--subdivide N] [--repeat 3] [--reference REV]
+    python benchmarks/segment.py [--mesh FILE | --near FACES] [--model MODEL.pt | --config NAME] [--subdivide N]
+                                 [--repeat 3] [--reference REV]
 
-Without ``--mesh`` it takes the PSB test mesh closest to 25K faces from
+Without ``--mesh`` it takes the PSB test mesh closest to ``--near`` faces (25K) from
 ``$ANSEG_DATA`` (or a subdivided synthetic shape when no data is there);
 ``--subdivide 1`` splits every face in four first (a 25K mesh becomes 100K,
-twice gives 400K; use it for the 200K-face memory figure). Without
-``--model`` a model is trained for one epoch on three synthetic shapes:
-speed does not depend on what the weights learnt. Features are computed
-without the cache, so their cost is in the figures. Stages are timed by
+twice gives 400K; ``--near 19000 --subdivide 2`` gives about 300K). Without
+``--model`` a model of the named configuration ``--config`` (default:
+``default``; ``v1`` is the network before validation) is trained for one
+epoch on three synthetic shapes: speed does not depend on what the weights
+learnt. Features are computed without the cache, so their cost is in the figures. Stages are timed by
 wrapping the package functions that implement them; peak memory is the
 process's peak resident set (ru_maxrss) measured in a fresh child process
 per mesh, minus the resident set after imports and loading. With
@@ -33,7 +35,7 @@ import numpy as np
 from stages import import_from, print_stages, reference_checkout, stage_timers
 
 
-def pick_mesh(path: str | None, subdivide: int):
+def pick_mesh(path: str | None, subdivide: int, near: int = 25_000):
     import igl
 
     from anseg import datasets, load_mesh
@@ -44,7 +46,7 @@ def pick_mesh(path: str | None, subdivide: int):
     else:
         try:
             items = [m for c in ("Teddy", "Human", "Airplane") for m in datasets.load("psb", category=c, split="test", progress=False)]
-            item = min(items, key=lambda m: abs(m.mesh.n_faces - 25_000))
+            item = min(items, key=lambda m: abs(m.mesh.n_faces - near))
             mesh, name = item.mesh, f"PSB {item.name}"
         except datasets.DatasetError:
             item = datasets.load("synthetic", category="figure", split="test", progress=False)[0]
@@ -56,13 +58,14 @@ def pick_mesh(path: str | None, subdivide: int):
     return mesh, name
 
 
-def quick_model():
+def quick_model(name: str):
     from anseg import datasets
-    from anseg.pipeline import SegmentConfig
-    from anseg.train import TrainConfig, fit
+    from anseg.configs import configuration
+    from anseg.train import fit
 
+    segment, train = configuration(name, "train.epochs=1")
     shapes = datasets.load("synthetic", category="figure", split="train", progress=False)[:3]
-    return fit(shapes, shapes[0].label_names, SegmentConfig(), TrainConfig(epochs=1), progress=False)
+    return fit(shapes, shapes[0].label_names, segment, train, progress=False)
 
 
 def segment_stages() -> dict:
@@ -89,8 +92,8 @@ def measure(args) -> None:
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    model = Segmenter.load(args.model) if args.model else quick_model()
-    mesh, name = pick_mesh(args.mesh, args.subdivide)
+    model = Segmenter.load(args.model) if args.model else quick_model(args.config)
+    mesh, name = pick_mesh(args.mesh, args.subdivide, args.near)
     baseline = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     segment(mesh, model, groups=compute_groups(mesh, model.config.groups, cache=False))  # warm-up: numba and torch first calls
     runs = []
@@ -114,7 +117,11 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mesh", help="mesh file (default: a PSB test mesh near 25K faces)")
     parser.add_argument("--model", help="model file written by `anseg train` (default: a one-epoch synthetic model)")
+    parser.add_argument("--near", type=int, default=25_000,
+                        help="without --mesh, the PSB test mesh closest to this many faces (default: 25000)")
     parser.add_argument("--subdivide", type=int, default=0, help="split every face in four this many times first")
+    parser.add_argument("--config", default="default",
+                        help="named configuration of the one-epoch model when no --model is given (default: default)")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs (default: 3)")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (default: torch's choice)")
     parser.add_argument("--reference", help="git revision whose code segments the same mesh beside this one")
@@ -124,7 +131,7 @@ def main(argv=None) -> None:
     if args.child:
         measure(args)
         return
-    own = [f"--subdivide={args.subdivide}", f"--repeat={args.repeat}", f"--threads={args.threads}",
+    own = [f"--subdivide={args.subdivide}", f"--near={args.near}", f"--repeat={args.repeat}", f"--threads={args.threads}", f"--config={args.config}",
            *([f"--mesh={args.mesh}"] if args.mesh else []), *([f"--model={args.model}"] if args.model else [])]
 
     def child(code: str | None) -> dict:  # a fresh process, so that the peak memory belongs to this mesh alone
