@@ -153,9 +153,9 @@ def train_and_evaluate(experiment: Experiment, dataset_options: dict | None = No
     train_set = datasets.load(experiment.dataset, split="train", **load)
     test_set = datasets.load(experiment.dataset, split="test", **load)
     label_names = train_set[0].label_names
-    started = time.time()
+    started, cpu_started = time.time(), time.process_time()
     model = fit(train_set, label_names, experiment.segment, experiment.train, checkpoint, progress)
-    train_seconds = time.time() - started
+    train_seconds, train_cpu_seconds = time.time() - started, time.process_time() - cpu_started
     started = time.time()
     scores = evaluate(model, test_set, progress=progress)
     result = {
@@ -163,7 +163,8 @@ def train_and_evaluate(experiment: Experiment, dataset_options: dict | None = No
         "split_index": experiment.split_index, "segment": asdict(experiment.segment), "train": asdict(experiment.train),
         "n_train": len(train_set), "n_test": len(test_set), "label_names": label_names,
         "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
-        "train_seconds": train_seconds, "evaluate_seconds": time.time() - started, "environment": environment(),
+        "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds, "evaluate_seconds": time.time() - started,
+        "environment": environment(),
     }
     return result, model.to_bytes()
 

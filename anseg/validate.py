@@ -28,8 +28,10 @@ mean over the fold x seed replicates, and for each arm against the baseline
 the paired difference: per (category, fold) the mean over seeds of arm minus
 baseline, averaged, with a 95 % percentile interval from a two-stage
 bootstrap (categories resampled with replacement, then the folds inside each
-drawn category). The decision rule: adopt when the interval excludes 0 and
-the mean is positive.
+drawn category), and what the arm's training costs: its CPU seconds over the
+baseline's on the cells both trained (a cell records both its wall and its
+CPU time). The decision rule: adopt when the interval excludes 0 and the
+mean is positive.
 """
 
 from __future__ import annotations
@@ -148,11 +150,11 @@ def compute_cell(cell: Cell, root=None, model: bytes | None = None, checkpoint: 
     train_set = [m for m, f in zip(meshes, fold) if f != cell.fold]
     held_out = [m for m, f in zip(meshes, fold) if f == cell.fold]
     segment, train = cell.configs()
-    started = time.time()
+    started, cpu_started = time.time(), time.process_time()
     trained = model is None
     network = (fit(train_set, meshes[0].label_names, segment, train, checkpoint, progress=False) if trained
                else Segmenter.load(io.BytesIO(model)))
-    train_seconds = time.time() - started
+    train_seconds, train_cpu_seconds = time.time() - started, time.process_time() - cpu_started
     scores = evaluate(network, held_out, segment, progress=False)
     result = {
         "key": cell.key(), "training_key": cell.training_key(), "arm": cell.arm.name, "category": cell.category,
@@ -160,7 +162,8 @@ def compute_cell(cell: Cell, root=None, model: bytes | None = None, checkpoint: 
         "split_index": cell.split_index, "segment": asdict(segment), "train": asdict(train),
         "train_meshes": [m.name for m in train_set], "held_out": [m.name for m in held_out],
         "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
-        "trained": trained, "train_seconds": train_seconds, "environment": environment(),
+        "trained": trained, "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds,
+        "environment": environment(),
     }
     return result, (network.to_bytes() if trained else None)
 
@@ -249,6 +252,23 @@ def paired_difference(table: dict, arm: str, baseline: str, samples: int = BOOTS
             "categories": len(per_category), "cells": int(sum(len(d) for d in per_category))}
 
 
+def training_cost(results: list[dict], arm: str, baseline: str) -> float:
+    """The arm's training CPU seconds over the baseline's, summed over the cells both trained (NaN without any).
+
+    CPU time of the training process, not wall time: a cell that waited
+    beside other jobs, or was paused, costs what it computed.
+    """
+    def seconds(name):
+        return {(r["category"], r["fold"], r["seed"]): r["train_cpu_seconds"] for r in results
+                if r["arm"] == name and r.get("trained") and "train_cpu_seconds" in r}
+
+    ours, theirs = seconds(arm), seconds(baseline)
+    shared = ours.keys() & theirs.keys()
+    if not shared:
+        return float("nan")
+    return sum(ours[c] for c in shared) / sum(theirs[c] for c in shared)
+
+
 def seed_spread(table: dict) -> list[dict]:
     """How far each arm moves from seed to seed, over the (category, fold) cells run with two seeds or more.
 
@@ -295,7 +315,8 @@ def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict
         means = [row["mean"] for row in rows if row["arm"] == arm]
         rows.append({"arm": arm, "category": "suite mean", "mean": float(np.mean(means)),
                      "std": float(np.std(complete, ddof=1)) if len(complete) > 1 else float("nan"), "runs": len(cells)})
-    comparisons = [paired_difference(table, arm, baseline) for arm in arms if arm != baseline]
+    comparisons = [{**paired_difference(table, arm, baseline), "cost": training_cost(results, arm, baseline)}
+                   for arm in arms if arm != baseline]
     return rows, comparisons
 
 
@@ -319,8 +340,9 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
                 verdict = f"no verdict on fewer than {MIN_CATEGORIES} categories"
             else:
                 verdict = "adopt" if c["low"] > 0 else ("worse" if c["high"] < 0 else "no evidence")
+            cost = f"; training costs {c['cost']:.2f}x the baseline's CPU time" if np.isfinite(c["cost"]) else ""
             lines.append(f"  {c['arm']:<24} {c['mean']:+6.2f} [{c['low']:+6.2f}, {c['high']:+6.2f}] "
-                         f"({c['categories']} categories, {c['cells']} cells): {verdict}")
+                         f"({c['categories']} categories, {c['cells']} cells): {verdict}{cost}")
     if spread:
         lines.append("\nfrom seed to seed (range over seeds: of one cell's accuracy, median and largest; of the suite mean):")
         lines += [f"  {r['arm']:<24} {r['median_range']:5.2f} median, {r['max_range']:5.2f} largest over {r['cells']} cells; "

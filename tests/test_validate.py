@@ -88,6 +88,23 @@ def test_report_names_the_verdict(tmp_path):
     assert "adopt" in validate.write_report(more, "default", tmp_path, "demo4")
 
 
+def test_training_cost_compares_cpu_seconds_on_the_cells_both_trained(tmp_path):
+    def result(arm, category, cpu, trained=True):
+        return {"arm": arm, "category": category, "fold": 0, "seed": 0, "accuracy": {"unit_area": 0.8},
+                "trained": trained, "train_cpu_seconds": cpu}
+
+    results = [result("default", "A", 100.0), result("default", "B", 300.0), result("cheap", "A", 30.0),
+               result("cheap", "B", 90.0), result("cheap", "C", 5.0),  # C: no baseline cell, left out
+               result("cut", "A", 1.0, trained=False)]  # scored with a stored model: no training to count
+    assert validate.training_cost(results, "cheap", "default") == pytest.approx(0.3)
+    assert np.isnan(validate.training_cost(results, "cut", "default"))
+    older = [{k: v for k, v in r.items() if k != "train_cpu_seconds"} for r in results]  # stored before CPU time was
+    assert np.isnan(validate.training_cost(older, "cheap", "default"))
+    text = validate.write_report(results, "default", tmp_path, "cost")
+    assert "training costs 0.30x the baseline's CPU time" in text
+    assert (tmp_path / "cost_paired.csv").read_text().splitlines()[0].endswith(",cost")
+
+
 def test_seed_spread_reads_each_cell_across_its_seeds(tmp_path):
     # cell (A, 0) moves by 4 from seed 0 to 1, (A, 1) by 2, (B, 0) by 0
     values = {("A", 0): (70, 74), ("A", 1): (80, 82), ("B", 0): (77, 77)}
