@@ -1,7 +1,8 @@
 """Training time of one category, by stage, beside a reference revision of the code.
 
     python benchmarks/train.py [--dataset psb] [--category Teddy] [--split 0] [--mode nonuniform]
-                               [--epochs 60] [--device auto] [--threads 1] [--reference REV] [--pairs N]
+                               [--epochs 60] [--device auto] [--threads 1] [--set OVERRIDES]
+                               [--reference REV] [--reference-set OVERRIDES] [--pairs N]
 
 Trains on the split's training meshes and evaluates on its test meshes, as
 ``anseg.experiments.train_and_evaluate`` does (nothing is stored; the test
@@ -12,8 +13,12 @@ the gradient steps (the rest of training) and evaluation. ``--threads 1``
 is the setting of the parallel runs. With ``--reference`` the same run is
 made in a fresh process with the code of that git revision (a temporary
 worktree), and every stage is printed beside it with the reference's time
-over ours. ``--pairs N`` runs each code N times, in alternating order, and
-prints medians: on a shared machine one pair can be off by 20 % either way.
+over ours. ``--set`` overrides the default settings (``patch_size=32``, the
+syntax of ``anseg.configs``); ``--reference-set`` gives the reference run
+settings of its own (``""``: the defaults), with our code where there is no
+``--reference``: what a setting saves, as a ratio. ``--pairs N`` runs each
+code N times, in alternating order, and prints medians: on a shared machine
+one pair can be off by 20 % either way.
 """
 
 from __future__ import annotations
@@ -28,13 +33,14 @@ import numpy as np
 from stages import import_from, print_stages, reference_checkout, stage_timers
 
 
-def measure(args, code: str | None = None) -> tuple[dict, float, str]:
+def measure(args, code: str | None, overrides: str) -> tuple[dict, float, str]:
     """Runs in a fresh process: seconds by stage, the test accuracy, and what ran."""
     import_from(code)
     import torch
 
     import anseg.train as train
     from anseg import datasets
+    from anseg.configs import configuration
     from anseg.pipeline import SegmentConfig
 
     torch.set_num_threads(args.threads)
@@ -45,8 +51,7 @@ def measure(args, code: str | None = None) -> tuple[dict, float, str]:
     category = None if args.category in ("", "none") else args.category
     load = dict(category=category, split_index=args.split, progress=False)
     train_set, test_set = datasets.load(args.dataset, split="train", **load), datasets.load(args.dataset, split="test", **load)
-    config = SegmentConfig(mode=args.mode)
-    settings = train.TrainConfig(epochs=args.epochs, device=args.device)
+    config, settings = configuration("default", f"mode={args.mode},train.epochs={args.epochs},train.device={args.device},{overrides}")
     totals = defaultdict(float)
     stages = {"features (level 0)": (train, "level_zero_features"), "rebuild hierarchy": (train, "_examples")}
     start = time.perf_counter()
@@ -59,7 +64,7 @@ def measure(args, code: str | None = None) -> tuple[dict, float, str]:
     totals["total"] = time.perf_counter() - start
     faces = np.mean([m.mesh.n_faces for m in train_set])
     what = (f"{args.dataset} {category} split {args.split}: {len(train_set)} training meshes ({faces:.0f} faces on average), "
-            f"{len(test_set)} test meshes; mode {args.mode}, {args.epochs} epochs; device "
+            f"{len(test_set)} test meshes; mode {args.mode}, {args.epochs} epochs{', ' + overrides if overrides else ''}; device "
             f"{train.resolve_device(args.device)}, torch threads {torch.get_num_threads()}")
     return dict(totals), 100 * scores["smoothed"]["unit_area"], what
 
@@ -74,26 +79,31 @@ def main(argv=None) -> None:
     parser.add_argument("--device", default="auto")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
     parser.add_argument("--reference", help="git revision whose code trains the same run beside this one")
+    parser.add_argument("--set", default="", help="overrides of the default settings, field=value,... (default: none)")
+    parser.add_argument("--reference-set", help="the reference run's overrides instead of --set (\"\": the defaults)")
     parser.add_argument("--pairs", type=int, default=1,
                         help="runs of each code, in alternating order; the figures are medians (default: 1)")
     args = parser.parse_args(argv)
 
     context = multiprocessing.get_context("spawn")  # fresh processes: each imports its own anseg
+    reference_set = args.set if args.reference_set is None else args.reference_set
+    label = " ".join(filter(None, [args.reference, f"[{reference_set or 'defaults'}]" if args.reference_set is not None else ""]))
     with reference_checkout(args.reference) as code:
+        compared = code is not None or args.reference_set is not None
         runs = {"ours": [], "reference": []}
         for pair in range(args.pairs):
             # alternate which code goes first, so that a load that drifts over the run weighs on both alike
-            order = [("ours", None), ("reference", code)] if code else [("ours", None)]
-            for name, checkout in order[:: 1 if pair % 2 == 0 else -1]:
+            order = [("ours", None, args.set)] + ([("reference", code, reference_set)] if compared else [])
+            for name, checkout, overrides in order[:: 1 if pair % 2 == 0 else -1]:
                 with ProcessPoolExecutor(1, mp_context=context) as pool:
-                    runs[name].append(pool.submit(measure, args, checkout).result())
+                    runs[name].append(pool.submit(measure, args, checkout, overrides).result())
     ours, accuracy, what = _median_run(runs["ours"])
-    reference = _median_run(runs["reference"]) if code else None
+    reference = _median_run(runs["reference"]) if compared else None
     print(what + (f"; median of {args.pairs} runs of each code, in alternating order" if args.pairs > 1 else ""))
     print(f"test accuracy (Eq. 5, unit area): {accuracy:.2f} %"
-          + (f"; {args.reference}: {reference[1]:.2f} %" if reference else ""))
-    print_stages(ours, reference[0] if reference else None, name=args.reference or "reference")
-    if code and args.pairs > 1:
+          + (f"; {label}: {reference[1]:.2f} %" if reference else ""))
+    print_stages(ours, reference[0] if reference else None, name=label or "reference")
+    if compared and args.pairs > 1:
         ratios = sorted(r[0]["total"] / o[0]["total"] for o, r in zip(runs["ours"], runs["reference"]))
         print(f"total, reference over ours, pair by pair: {', '.join(f'{x:.2f}x' for x in ratios)}")
 
