@@ -289,6 +289,26 @@ def test_hks_of_a_large_mesh_comes_from_the_collapse_the_agd_uses(monkeypatch):
         assert np.corrcoef(proxy[:, column], direct[:, column])[0, 1] > 0.97
 
 
+def test_smooth_group_of_a_large_mesh_diffuses_on_the_proxy_keeping_constants_and_integrals(monkeypatch):
+    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
+    mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
+    direct = features.compute_groups(mesh, ["smooth"], **FAST)["smooth"]
+    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
+    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+    proxy = features.compute_groups(mesh, ["smooth"], **FAST)["smooth"]
+    assert proxy.shape == direct.shape and not np.array_equal(proxy, direct)
+    for column in range(direct.shape[1]):
+        assert np.corrcoef(proxy[:, column], direct[:, column])[0, 1] > 0.99
+
+    geometry = features._Geometry(mesh, features.FeatureSettings(**FAST))
+    area = geometry.mesh.face_areas
+    signal = np.stack([np.ones(mesh.n_faces), geometry.mesh.face_centroids[:, 0] ** 2], axis=1)
+    for block in features._diffuse_through_proxy(geometry, signal, (0.05, 0.3)):
+        np.testing.assert_allclose(block[:, 0], 1.0, rtol=1e-9)
+        np.testing.assert_allclose((block[:, 1] * area).sum(), (signal[:, 1] * area).sum(), rtol=1e-9)
+        assert block[:, 1].std() < signal[:, 1].std()
+
+
 def test_second_call_reads_the_cache(cache_root, monkeypatch):
     mesh = blob()
     first = features.compute(mesh, **FAST)
