@@ -528,6 +528,10 @@ def _embree_caster(mesh: Mesh):
     same face for 99.998 % of the SDF rays, at distances within a relative
     5e-8, but those float32 distances would move the last bits of every
     stored feature of the benchmark meshes, and with them the stored runs.
+    Where threads are allowed the rays are split between them: embree's
+    queries on a built scene are thread-safe and embreex lets go of the GIL
+    (two threads cast 1M rays in 0.40-0.44 s against 0.79-0.86 s), and each
+    ray's hit is its own, so the result does not depend on the split.
     """
     from embreex import mesh_construction, rtcore_scene
 
@@ -535,9 +539,13 @@ def _embree_caster(mesh: Mesh):
     mesh_construction.TriangleMesh(scene, mesh.vertices[mesh.faces].astype(np.float32))
 
     def cast(origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        found = scene.run(origins.astype(np.float32), directions.astype(np.float32), output=1)
-        hit_face = np.where(found["geomID"] >= 0, found["primID"], -1).astype(np.int64)
-        return hit_face, np.where(hit_face >= 0, found["tfar"].astype(np.float64), np.inf)
+        origins, directions = origins.astype(np.float32), directions.astype(np.float32)
+        bounds = np.linspace(0, len(origins), _threads_allowed() + 1).astype(int)
+        with ThreadPoolExecutor(len(bounds) - 1) as pool:
+            parts = list(pool.map(lambda a, b: scene.run(origins[a:b], directions[a:b], output=1), bounds[:-1], bounds[1:]))
+        geometry, face, t = (np.concatenate([part[key] for part in parts]) for key in ("geomID", "primID", "tfar"))
+        hit_face = np.where(geometry >= 0, face, -1).astype(np.int64)
+        return hit_face, np.where(hit_face >= 0, t.astype(np.float64), np.inf)
 
     return cast
 

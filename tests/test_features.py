@@ -464,3 +464,6 @@ def test_sdf_of_a_large_mesh_through_embree_matches_our_ray_caster(monkeypatch):
     monkeypatch.setattr(features, "LARGE_MESH_FACES", mesh.n_faces - 1)
     embree = features.compute_groups(mesh, ["sdf"], **FAST)["sdf"]
     np.testing.assert_allclose(embree[:, 0], ours[:, 0], rtol=1e-4)
+    for threads in (1, 3):  # the rays split between threads: the same hits
+        monkeypatch.setattr(features, "_threads_allowed", lambda: threads)
+        np.testing.assert_array_equal(features.compute_groups(mesh, ["sdf"], **FAST)["sdf"], embree)
