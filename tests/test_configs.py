@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from anseg.cli import main
@@ -28,6 +30,13 @@ def test_v1_is_the_reading_the_committed_tables_ran_with():
     assert segment.groups == DEFAULT_GROUPS + ("smooth",) and segment.local_scale == "unit_area"
     assert segment.priority == "score" and segment.smooth_weight == 1.0 and train.average_last == 0
     assert configuration("default") != (segment, train)
+
+
+def test_fast_is_the_default_with_larger_patches_and_fewer_rebuilds():
+    segment, train = configuration("fast")
+    assert (segment.patch_size, train.recollapse_every) == (32, 10)
+    assert (SegmentConfig(), TrainConfig()) == (replace(segment, patch_size=SegmentConfig().patch_size),
+                                                 replace(train, recollapse_every=TrainConfig().recollapse_every))
 
 
 def test_overrides_go_on_top_of_a_named_configuration():
