@@ -238,14 +238,24 @@ def test_diffusion_by_multigrid_cg_matches_a_direct_solve(monkeypatch):
         np.testing.assert_allclose(block, direct, rtol=1e-7, atol=1e-9)
 
 
+def ellipsoid() -> Mesh:
+    """A 5120-face ellipsoid: above the 4000-face threshold of :func:`take_the_large_mesh_paths`."""
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    return Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
+
+
+def take_the_large_mesh_paths(monkeypatch) -> None:
+    """Meshes above 4000 faces take the large-mesh paths, with a 1200-face proxy."""
+    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
+    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+
+
 def test_agd_of_a_large_mesh_comes_from_its_collapse_and_keys_its_own_cache_entry(cache_root, monkeypatch):
-    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
-    mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
+    mesh = ellipsoid()
     settings = features.FeatureSettings(**FAST)
     direct = features.compute_groups(mesh, ["agd"], **FAST)["agd"]
     path, small_path = features._cache_path(mesh, ("agd",), settings), features._cache_path(blob(), ("agd",), settings)
-    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
-    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+    take_the_large_mesh_paths(monkeypatch)
     proxy = features.compute_groups(mesh, ["agd"], **FAST)["agd"]
     assert not np.array_equal(proxy, direct)
     assert np.corrcoef(proxy[:, 0], direct[:, 0])[0, 1] > 0.99
@@ -271,11 +281,9 @@ def test_hks_with_our_spd_factor_is_eigsh_with_its_own():
 
 
 def test_hks_of_a_large_mesh_comes_from_the_collapse_the_agd_uses(monkeypatch):
-    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
-    mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
+    mesh = ellipsoid()
     direct = features.compute_groups(mesh, ["hks"], **FAST)["hks"]
-    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
-    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+    take_the_large_mesh_paths(monkeypatch)
     collapses = []
     downsample = collapse.downsample
     monkeypatch.setattr(collapse, "downsample", lambda *a, **kw: collapses.append(1) or downsample(*a, **kw))
@@ -290,11 +298,9 @@ def test_hks_of_a_large_mesh_comes_from_the_collapse_the_agd_uses(monkeypatch):
 
 
 def test_smooth_group_of_a_large_mesh_diffuses_on_the_proxy_keeping_constants_and_integrals(monkeypatch):
-    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
-    mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)
+    mesh = ellipsoid()
     direct = features.compute_groups(mesh, ["smooth"], **FAST)["smooth"]
-    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
-    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+    take_the_large_mesh_paths(monkeypatch)
     proxy = features.compute_groups(mesh, ["smooth"], **FAST)["smooth"]
     assert proxy.shape == direct.shape and not np.array_equal(proxy, direct)
     for column in range(direct.shape[1]):
