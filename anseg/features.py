@@ -776,17 +776,14 @@ def _diffuse_through_proxy(g: _Geometry, signals: np.ndarray, radii: Sequence[fl
 
 
 def _clamped_barycentric(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(N, 3) barycentric weights of each point (N, 3), projected on its triangle's plane (N, 3 corners, 3), clamped into it."""
-    a = triangles[:, 0]
-    e1, e2, d = triangles[:, 1] - a, triangles[:, 2] - a, points - a
-    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
-    d1, d2 = (d * e1).sum(1), (d * e2).sum(1)
-    det = d11 * d22 - d12 * d12
-    flat = det <= 0  # a degenerate proxy face: its corners share the weight
-    det = np.where(flat, 1.0, det)
-    u = np.where(flat, 1.0 / 3.0, (d22 * d1 - d12 * d2) / det)
-    w = np.where(flat, 1.0 / 3.0, (d11 * d2 - d12 * d1) / det)
-    weights = np.maximum(np.stack([1.0 - u - w, u, w], axis=1), 0.0)
+    """(N, 3) barycentric weights of each point (N, 3) on its triangle's plane (N, 3 corners, 3), clamped into the triangle.
+
+    libigl's coordinates; a degenerate triangle (no finite coordinates) shares the weight between its corners.
+    """
+    import igl
+
+    weights = igl.barycentric_coordinates(points, triangles[:, 0], triangles[:, 1], triangles[:, 2])
+    weights = np.where(np.isfinite(weights).all(axis=1, keepdims=True), np.maximum(weights, 0.0), 1.0 / 3.0)
     return weights / weights.sum(axis=1, keepdims=True)
 
 
