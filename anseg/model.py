@@ -2,13 +2,14 @@
 
 One mesh per call. Faces come grouped into patches (the transformer's tokens) by a
 :class:`~anseg.cluster.PatchLayout` computed elsewhere, which puts every face in one
-slot of a ``(n_patches, patch_size)`` grid; unused slots are padding.
+slot of a ``(n_patches, patch_size)`` grid; unused slots are padding, which only the
+share's softmax sees (as -inf).
 
 Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
 
-    x (F, in) --embed MLP--> e (F, W) --scatter--> (T, P, W) + mask (T, P)
-    per-face score s = w.e; share = softmax of s over the patch's real faces
-    token = sum_p share * e  (+ optional positional signal)       (T, W)
+    x (F, in) --embed MLP--> e (F, W)
+    per-face score s = w.e; share = softmax of s over the patch's faces
+    token = sum of share * e over its faces (+ optional positional signal)  (T, W)
     depth x pre-norm block: h += Attn(LN h); h += MLP(LN h)       (T, W)
     logits = head([e, LN(h)[patch]])                              (F, C)
     attention = received mass of the token (last block) x share x F  (F,)
@@ -268,6 +269,11 @@ class AttentionSegmenter(nn.Module):
         returns attention with its gradient (see the module docstring).
         ``coarse`` (F, coarse_levels x W): the context of each face's face on
         the coarser levels, read by the coarse-context head (input level only).
+
+        The per-face layers run on the F faces, not on the padded grid, and
+        the head's columns that read the token's context act once per token
+        (its first layer is linear, so adding them per face is the same sum):
+        the per-face layers are most of a step's arithmetic at patches of 32.
         """
         if x.dim() != 2 or x.shape[1] != self.config.in_features:
             raise ValueError(f"x must be (faces, {self.config.in_features}), got {tuple(x.shape)}")
@@ -277,61 +283,49 @@ class AttentionSegmenter(nn.Module):
         if coarse is not None and (self.context_head is None or coarse.shape != (x.shape[0], self.config.coarse_levels * self.config.width)):
             raise ValueError(f"coarse context must be (faces, {self.config.coarse_levels} x {self.config.width}) "
                              f"for a model with coarse_levels={self.config.coarse_levels}, got {tuple(coarse.shape)}")
-        mask = torch.as_tensor(layout.mask, device=x.device)
-        grid_coarse = layout.to_tokens(coarse) if coarse is not None else None
-        logits, attention, context = self.forward_patches(layout.to_tokens(x), mask, need_attention, attention_grad, grid_coarse)
-        return Output(*(layout.to_faces(t) if t is not None else None for t in (logits, attention, context)))
-
-    def forward_patches(
-        self, grid: torch.Tensor, mask: torch.Tensor, need_attention: bool = True, attention_grad: bool = False,
-        coarse: torch.Tensor | None = None,
-    ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
-        """The network on a (T, P, in_features) grid with its (T, P) mask of real slots.
-
-        Returns logits (T, P, C), attention (T, P) (or None) and context (T, P, W)
-        (None at depth 0); all are meaningless at padding slots (attention is 0
-        there), whose input values are never read. ``coarse`` (T, P, k x W): the
-        coarse levels' context, for the coarse-context head.
-        """
-        if mask.dim() != 2 or mask.dtype != torch.bool:
-            raise ValueError(f"mask must be a (patches, patch_size) bool tensor, got {mask.dtype} {tuple(mask.shape)}")
-        n_patches, patch_size = mask.shape
-        if grid.shape != (n_patches, patch_size, self.config.in_features):
-            expected = (n_patches, patch_size, self.config.in_features)
-            raise ValueError(f"grid must be {expected}, got {tuple(grid.shape)}")
-        if not bool(mask.any(dim=1).all()):
+        if not layout.mask.any(axis=1).all():
             raise ValueError("every patch needs at least one real face")
-        if grid.dtype != self.norm_out.weight.dtype:
-            raise ValueError(f"features must be {self.norm_out.weight.dtype} like the model, got {grid.dtype}")
-        if not bool(torch.isfinite(grid[mask]).all()):
+        if x.dtype != self.norm_out.weight.dtype:
+            raise ValueError(f"features must be {self.norm_out.weight.dtype} like the model, got {x.dtype}")
+        if not bool(torch.isfinite(x).all()):
             raise ValueError("features hold NaN or inf at real faces")
-        real = mask.unsqueeze(-1)
-        # masked_fill, not multiply: padding may hold NaN or inf and must not leak.
-        embedded = self.embed(grid.masked_fill(~real, 0.0)).masked_fill(~real, 0.0)
+        embedded = self.embed(x)
         if not self.blocks:  # the per-face classifier (module docstring)
             if attention_grad:
                 raise ValueError("a depth-0 model has no attention to train")
-            return self.head(embedded), (mask.to(embedded.dtype) if need_attention else None), None
-        share = torch.softmax(self.share_score(embedded).squeeze(-1).masked_fill(~mask, -math.inf), dim=1)
-        h = (share.unsqueeze(-1) * embedded).sum(dim=1)
+            return Output(self.head(embedded), x.new_ones(len(x)) if need_attention else None, None)
+        patch = torch.as_tensor(layout.patch_of_face, device=x.device)
+        # softmax of the scores over each patch's faces, on the grid where padding holds -inf
+        scores = layout.to_tokens(self.share_score(embedded).squeeze(-1), fill=-math.inf)
+        share = layout.to_faces(torch.softmax(scores, dim=1))
+        h = embedded.new_zeros(layout.n_patches, embedded.shape[1]).index_add(0, patch, share.unsqueeze(1) * embedded)
         if self.position is not None:
-            h = h + self.position(self._position_features(n_patches, h.device))
+            h = h + self.position(self._position_features(layout.n_patches, h.device))
         for block in self.blocks:
             h, q, k = block(h)
-        context = self.norm_out(h).unsqueeze(1).expand(-1, patch_size, -1)
+        context = self.norm_out(h)
         if coarse is not None:
-            logits = self.context_head(torch.cat([embedded, context, coarse.masked_fill(~real, 0.0)], dim=-1))
+            logits = self._head_on_faces(self.context_head, embedded, context, patch, coarse)
         else:
-            logits = self.head(torch.cat([embedded, context], dim=-1))
+            logits = self._head_on_faces(self.head, embedded, context, patch)
         if attention_grad:
             pooling = share.detach() if self.config.detach_share else share
-            return logits, received_attention(q, k).unsqueeze(1) * pooling * mask.sum(), context
+            return Output(logits, received_attention(q, k)[patch] * pooling * len(x), context[patch])
         if not need_attention:
-            return logits, None, context
+            return Output(logits, None, context[patch])
         with torch.no_grad():
-            mass = received_attention(q.detach(), k.detach())
-            attention = mass.unsqueeze(1) * share.detach() * mask.sum()
-        return logits, attention, context
+            attention = received_attention(q.detach(), k.detach())[patch] * share.detach() * len(x)
+        return Output(logits, attention, context[patch])
+
+    @staticmethod
+    def _head_on_faces(head: nn.Sequential, embedded: torch.Tensor, context: torch.Tensor, patch: torch.Tensor,
+                       coarse: torch.Tensor | None = None) -> torch.Tensor:
+        """``head(cat([embedded, context[patch], coarse]))`` with the context's columns applied per token (T rows, not F)."""
+        first, width = head[0], embedded.shape[1]
+        hidden = F.linear(embedded, first.weight[:, :width]) + F.linear(context, first.weight[:, width : 2 * width], first.bias)[patch]
+        if coarse is not None:
+            hidden = hidden + F.linear(coarse, first.weight[:, 2 * width :])
+        return head[1:](hidden)
 
     def _position_features(self, n_tokens: int, device: torch.device) -> torch.Tensor:
         """sin/cos of 2^j pi t/(T-1), j < position_frequencies: (T, 2 x frequencies)."""

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+from torch import nn
 
 from anseg.cluster import PatchLayout, patches
 
@@ -126,17 +127,18 @@ def test_context_reaches_other_tokens(problem):
     assert not torch.allclose(model(changed, layout).logits[~first], out.logits[~first])
 
 
-def test_padding_values_are_never_read(problem):
+def test_head_on_faces_is_the_head_on_the_concatenation(problem):
+    """The context columns applied once per token give the head of [embedding, context of the face's token, coarse]."""
     model, x, layout = problem
-    grid, mask = layout.to_tokens(x), torch.as_tensor(layout.mask)
-    assert (~mask).any()
-    poisoned = grid.clone()
-    poisoned[~mask] = float("nan")
-    logits, attention, _ = model.forward_patches(grid, mask)
-    logits_p, attention_p, _ = model.forward_patches(poisoned, mask)
-    torch.testing.assert_close(logits_p[mask], logits[mask])
-    torch.testing.assert_close(attention_p[mask], attention[mask])
-    assert (attention_p[~mask] == 0).all()
+    patch = torch.as_tensor(layout.patch_of_face)
+    embedded, context = torch.randn(len(x), 16), torch.randn(layout.n_patches, 16)
+    head = nn.Sequential(nn.Linear(16 * 3, 8), nn.GELU(), nn.Linear(8, 3))
+    coarse = torch.randn(len(x), 16)
+    expected = head(torch.cat([embedded, context[patch], coarse], dim=1))
+    torch.testing.assert_close(model._head_on_faces(head, embedded, context, patch, coarse), expected)
+    plain = nn.Sequential(nn.Linear(16 * 2, 8), nn.GELU(), nn.Linear(8, 3))
+    torch.testing.assert_close(model._head_on_faces(plain, embedded, context, patch),
+                               plain(torch.cat([embedded, context[patch]], dim=1)))
 
 
 def test_layout_errors_are_explicit(problem):
@@ -146,7 +148,7 @@ def test_layout_errors_are_explicit(problem):
     with pytest.raises(ValueError, match="patches of 4"):
         model(x, random_layout(203, 4, torch.Generator().manual_seed(1)))
     with pytest.raises(ValueError, match="every patch needs"):
-        model.forward_patches(layout.to_tokens(x), torch.zeros(layout.mask.shape, dtype=torch.bool))
+        model(x, replace(layout, mask=np.zeros_like(layout.mask)))
     with pytest.raises(ValueError, match=r"x must be \(faces, 5\)"):
         model(x[:, :4], layout)
     with pytest.raises(ValueError, match="NaN or inf"):
