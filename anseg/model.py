@@ -308,13 +308,13 @@ class AttentionSegmenter(nn.Module):
             logits = self._head_on_faces(self.context_head, embedded, context, patch, coarse)
         else:
             logits = self._head_on_faces(self.head, embedded, context, patch)
+        attention = None
         if attention_grad:
             pooling = share.detach() if self.config.detach_share else share
-            return Output(logits, received_attention(q, k)[patch] * pooling * len(x), context[patch])
-        if not need_attention:
-            return Output(logits, None, context[patch])
-        with torch.no_grad():
-            attention = received_attention(q.detach(), k.detach())[patch] * share.detach() * len(x)
+            attention = received_attention(q, k)[patch] * pooling * len(x)
+        elif need_attention:
+            with torch.no_grad():
+                attention = received_attention(q.detach(), k.detach())[patch] * share.detach() * len(x)
         return Output(logits, attention, context[patch])
 
     @staticmethod
