@@ -13,7 +13,7 @@ Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
     depth x pre-norm block: h += Attn(LN h); h += MLP(LN h)       (T, W)
     logits = head([e, LN(h)[patch]])                              (F, C)
     attention = received mass of the token (last block) x share x F  (F,)
-    context = LN(h)[patch], what a finer level may read           (F, W)
+    context = LN(h) per token, with each face's token, what a finer level may read  (T, W)
 
 Choices, and why:
 
@@ -111,15 +111,19 @@ class ModelConfig:
 
 
 class Output(NamedTuple):
-    """Per-face class logits (F, C), attention values (F,) with mean 1 (None when not asked for), and context (F, W).
+    """Per-face class logits (F, C), attention values (F,) with mean 1 (None when not asked for), and context.
 
-    ``context`` is the face's token after the transformer (what the coarse-context
-    head of a finer level reads); None for a depth-0 model.
+    ``context`` (T, W) is every token after the transformer and ``patch`` (F,)
+    the token of every face, so ``context[patch]`` is what the coarse-context
+    head of a finer level reads. Kept per token because most callers never
+    read it, and gathering it per face costs an (F, W) copy. None for a
+    depth-0 model.
     """
 
     logits: torch.Tensor
     attention: torch.Tensor | None
     context: torch.Tensor | None = None
+    patch: torch.Tensor | None = None
 
 
 def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = None) -> torch.Tensor:
@@ -259,7 +263,7 @@ class AttentionSegmenter(nn.Module):
         self, x: torch.Tensor, layout: PatchLayout, need_attention: bool = True, attention_grad: bool = False,
         coarse: torch.Tensor | None = None,
     ) -> Output:
-        """Logits (F, C), attention (F,) and context (F, W) of one mesh's faces.
+        """Logits (F, C), attention (F,) and context (T, W, with each face's token) of one mesh's faces.
 
         ``x``: (F, in_features) features; ``layout``: where every face sits in the
         (n_patches, patch_size) token grid (:func:`anseg.cluster.layout`, which
@@ -287,7 +291,8 @@ class AttentionSegmenter(nn.Module):
             raise ValueError("every patch needs at least one real face")
         if x.dtype != self.norm_out.weight.dtype:
             raise ValueError(f"features must be {self.norm_out.weight.dtype} like the model, got {x.dtype}")
-        if not bool(torch.isfinite(x).all()):
+        # a finite sum rules out NaN and inf in one cheap pass; the exact test runs only when it is not
+        if not bool(torch.isfinite(x.sum())) and not bool(torch.isfinite(x).all()):
             raise ValueError("features hold NaN or inf at real faces")
         embedded = self.embed(x)
         if not self.blocks:  # the per-face classifier (module docstring)
@@ -315,7 +320,7 @@ class AttentionSegmenter(nn.Module):
         elif need_attention:
             with torch.no_grad():
                 attention = received_attention(q.detach(), k.detach())[patch] * share.detach() * len(x)
-        return Output(logits, attention, context[patch])
+        return Output(logits, attention, context, patch)
 
     @staticmethod
     def _head_on_faces(head: nn.Sequential, embedded: torch.Tensor, context: torch.Tensor, patch: torch.Tensor,

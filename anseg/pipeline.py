@@ -346,7 +346,7 @@ def forward_levels(network: AttentionSegmenter, inputs: list[dict], to_level: li
     for index in [*range(1, len(inputs)), 0] if with_context else range(len(inputs)):
         coarse = None
         if with_context and index == 0:
-            coarse = torch.cat([outputs[i].context[to_level[i]] for i in range(1, len(inputs))], dim=1)
+            coarse = torch.cat([outputs[i].context[outputs[i].patch][to_level[i]] for i in range(1, len(inputs))], dim=1)
         outputs[index] = network(**inputs[index], need_attention=need_attention, attention_grad=attention_grad[index],
                                  coarse=coarse)
     return outputs

@@ -151,8 +151,10 @@ def test_layout_errors_are_explicit(problem):
         model(x, replace(layout, mask=np.zeros_like(layout.mask)))
     with pytest.raises(ValueError, match=r"x must be \(faces, 5\)"):
         model(x[:, :4], layout)
-    with pytest.raises(ValueError, match="NaN or inf"):
-        model(torch.where(torch.as_tensor(layout.patch_of_face == 1)[:, None], float("inf"), x), layout)
+    for bad in (float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="NaN or inf"):
+            model(torch.where(torch.as_tensor(layout.patch_of_face == 1)[:, None], bad, x), layout)
+    model(torch.full_like(x, 3e38), layout)  # finite, though their sum overflows: no error
     with pytest.raises(ValueError, match="float32"):
         model(x.double(), layout)
     with pytest.raises(ValueError, match="divisible"):
