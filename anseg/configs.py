@@ -11,13 +11,14 @@
   hierarchy rebuilt every 10 epochs instead of 5, for studies and users
   that need cheaper training; on the validation protocol (the 9
   development categories) it scores -0.17 points [-0.69, +0.40] against the
-  default on fold 0 with seeds 0 and 1 (study ``speed-p32-r10``) and -0.22
-  [-1.00, +0.43] on folds 0 and 1 with seed 0 (``speed-p32-r10-folds01``;
-  fold 1 alone -0.45, Hand -3.9), inside the default's spread of the suite
-  mean from seed to seed (0.39) but below it, and its training (gradient steps and
-  rebuilds) costs 1.65x less on PSB Human split 0 and 1.86x less on Teddy
+  default on fold 0 with seeds 0 and 1 (study ``speed-p32-r10``) and -0.20
+  [-0.78, +0.28] on all three folds with seed 0 (``speed-p32-r10-folds012``;
+  fold 1 alone -0.45, Hand -3.9; fold 2 -0.17), inside the default's spread
+  of the suite mean from seed to seed (0.39) but below it, and its training
+  (gradient steps and rebuilds) costs 1.87x less on PSB Human split 0 and
+  2.22x less on Teddy than the default did with the code of 7cf4810
   (``benchmarks/train.py --set patch_size=32,train.recollapse_every=10
-  --reference-set ""``).
+  --reference 7cf4810 --reference-set ""``).
 * ``paper``: the plain reading of the paper. The features of Algorithm 1,
   line 1 (edge-encoded vector, inner angles, edge-length ratios, GC, SDF,
   AGD; no multi-scale ``smooth`` group), labels from the coarsest level, the
