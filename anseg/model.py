@@ -13,7 +13,7 @@ Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
     depth x pre-norm block: h += Attn(LN h); h += MLP(LN h)       (T, W)
     logits = head([e, LN(h)[patch]])                              (F, C)
     attention = received mass of the token (last block) x share x F  (F,)
-    context = LN(h) per token, with each face's token, what a finer level may read  (T, W)
+    context = LN(h), per token (the face's token is patch), what a finer level may read  (T, W)
 
 Choices, and why:
 
@@ -263,7 +263,7 @@ class AttentionSegmenter(nn.Module):
         self, x: torch.Tensor, layout: PatchLayout, need_attention: bool = True, attention_grad: bool = False,
         coarse: torch.Tensor | None = None,
     ) -> Output:
-        """Logits (F, C), attention (F,) and context (T, W, with each face's token) of one mesh's faces.
+        """Logits (F, C), attention (F,), and context (T, W) with each face's token (F,) of one mesh.
 
         ``x``: (F, in_features) features; ``layout``: where every face sits in the
         (n_patches, patch_size) token grid (:func:`anseg.cluster.layout`, which
