@@ -26,6 +26,7 @@ import math
 import time
 
 import torch
+from stages import peak_gflops
 
 from anseg.model import received_attention
 
@@ -47,17 +48,6 @@ def seconds_per_call(mass_of, q, k, upstream, repeat: int) -> float:
 def sdpa_block(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     """One block's attention as the model calls it: a leading batch axis of 1 keeps the CPU flash kernel."""
     return torch.nn.functional.scaled_dot_product_attention(q.unsqueeze(0), k.unsqueeze(0), v.unsqueeze(0))[0]
-
-
-def peak_gflops(repeat: int, size: int = 2048) -> float:
-    """GFLOP/s of one (size x size) @ (size x size) float32 product, the best of ``repeat``."""
-    a, b = torch.randn(size, size), torch.randn(size, size)
-    best = math.inf
-    for _ in range(repeat + 1):
-        start = time.perf_counter()
-        a @ b
-        best = min(best, time.perf_counter() - start)
-    return 2 * size**3 / best / 1e9
 
 
 def main(argv=None) -> None:

@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 import torch
-from attention import peak_gflops
+from stages import peak_gflops
 from torch.utils.flop_counter import FlopCounterMode
 
 import anseg.train as train

@@ -1,7 +1,8 @@
-"""What the benchmarks share: stage timers that wrap the package functions, and a reference revision's checkout."""
+"""What the benchmarks share: stage timers that wrap the package functions, a reference revision's checkout, and this core's arithmetic peak."""
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 import tempfile
@@ -66,3 +67,16 @@ def print_stages(totals: dict, reference: dict | None = None, name: str = "refer
         if reference and stage in reference:
             line += f"{reference[stage]:>14.3f}{reference[stage] / max(seconds, 1e-9):>7.2f}x"
         print(line)
+
+
+def peak_gflops(repeat: int = 5, size: int = 2048) -> float:
+    """GFLOP/s of one (size x size) @ (size x size) float32 product with torch's threads, the best of ``repeat``."""
+    import torch
+
+    a, b = torch.randn(size, size), torch.randn(size, size)
+    best = math.inf
+    for _ in range(repeat + 1):
+        start = time.perf_counter()
+        a @ b
+        best = min(best, time.perf_counter() - start)
+    return 2 * size**3 / best / 1e9
