@@ -13,8 +13,11 @@
   development categories) it scores -0.17 points [-0.69, +0.40] against the
   default on fold 0 with seeds 0 and 1 (study ``speed-p32-r10``) and -0.20
   [-0.78, +0.28] on all three folds with seed 0 (``speed-p32-r10-folds012``;
-  fold 1 alone -0.45, Hand -3.9; fold 2 -0.17), inside the default's spread
-  of the suite mean from seed to seed (0.39) but below it, and its training
+  fold 1 alone -0.45, Hand -3.9; fold 2 -0.17); with seed 1 on folds 0 and 1
+  as well, -0.33 [-0.69, +0.01] (``speed-p32-r10-all``, 45 cells; fold 1 with
+  seed 1 alone -0.87, Human -3.1, Vase -2.7). That is below the default, at
+  the edge of its spread of the suite mean from seed to seed (0.39 on fold
+  0, 0.17 over folds 0 and 1), and its training
   (gradient steps and rebuilds) costs 1.87x less on PSB Human split 0 and
   2.22x less on Teddy than the default did with the code of 7cf4810
   (``benchmarks/train.py --set patch_size=32,train.recollapse_every=10
