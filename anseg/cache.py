@@ -1,17 +1,22 @@
-"""Where anseg keeps what it derives (extracted archives, features), and atomic writes.
+"""Where anseg keeps what it derives (extracted archives, features, eigenbases), atomic writes, and checked arrays.
 
 The location is ``$ANSEG_CACHE`` when set, else ``$XDG_CACHE_HOME/anseg``,
 else ``~/.cache/anseg``. Every write goes to a temporary file in the same
 folder and is renamed into place, so a crash never leaves a half-written
-entry under the final name.
+entry under the final name. Cached arrays end with the sha256 of their data,
+so flipped bytes are caught on reading, not trained on.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
+import warnings
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+
+import numpy as np
 
 
 def cache_dir(*parts: str) -> Path:
@@ -41,3 +46,40 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def write_checked_array(path: Path, array: np.ndarray) -> None:
+    """The array as .npy, then the sha256 of its data (use inside :func:`atomic_write`)."""
+    with open(path, "wb") as handle:  # np.save(path) would append ".npy" to the temporary name
+        np.save(handle, array, allow_pickle=False)
+        handle.write(hashlib.sha256(np.ascontiguousarray(array).tobytes()).digest())
+
+
+def read_checked_array(path: Path, shape: tuple[int, int]) -> np.ndarray | None:
+    """The float32 array written by :func:`write_checked_array`, or None when absent.
+
+    A damaged entry (checksum, shape, dtype or non-finite values) is removed,
+    with a RuntimeWarning, and None returned, so that the caller recomputes it.
+    """
+    if not path.is_file():
+        return None
+    try:
+        with open(path, "rb") as handle:
+            array = np.lib.format.read_array(handle, allow_pickle=False)
+            checksum = handle.read()
+        problem = None
+        if checksum != hashlib.sha256(array.tobytes()).digest():
+            problem = "checksum mismatch (damaged or truncated)"
+        elif array.shape != shape:
+            problem = f"shape {array.shape}, expected {shape}"
+        elif array.dtype != np.float32:
+            problem = f"dtype {array.dtype}, expected float32"
+        elif not np.isfinite(array).all():
+            problem = "non-finite values"
+    except (OSError, ValueError, EOFError) as exc:
+        problem = f"unreadable ({type(exc).__name__}: {exc})"
+    if problem is None:
+        return array
+    warnings.warn(f"damaged cache entry {path}: {problem}; recomputing", RuntimeWarning, stacklevel=3)
+    path.unlink(missing_ok=True)
+    return None

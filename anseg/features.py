@@ -93,9 +93,10 @@ import numpy as np
 from numba import njit, prange
 from tqdm.auto import tqdm
 
-from anseg.cache import atomic_write, cache_dir
+from anseg.cache import atomic_write, cache_dir, read_checked_array, write_checked_array
 from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
+from anseg.spectral import SPECTRUM_PAIRS, factor_spd, laplacian_eigenpairs
 
 FEATURES_VERSION = 1
 
@@ -103,8 +104,7 @@ GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd", "smooth", "hks")
 DEFAULT_GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd")
 LOCAL_GROUPS = ("edge", "angles", "ratios", "gc")
 GLOBAL_GROUPS = ("sdf", "agd", "smooth", "hks")
-HKS_EIGENPAIRS = 64
-HKS_TOLERANCE = 1e-6  # relative accuracy of the eigenvalues (see _heat_kernel_signature)
+HKS_EIGENPAIRS = SPECTRUM_PAIRS  # one eigensolve serves the HKS and the network's spectrum
 HKS_TIMES = (0.002, 0.004, 0.008, 0.016, 0.032, 0.064, 0.128, 0.256)  # unit-area mesh: 1/lambda_64 .. beyond 1/lambda_1
 # The paper's Fig. 12 feature sets.
 ABLATION_SETS = {
@@ -209,6 +209,11 @@ def feature_names(groups: Sequence[str] = DEFAULT_GROUPS, **settings) -> list[st
 
 
 # ---------------------------------------------------------------- geometry
+def geometry(mesh: Mesh) -> "_Geometry":
+    """The unit-area, centred mesh (unreferenced vertices dropped) with the quantities groups share, at default settings."""
+    return _Geometry(mesh, FeatureSettings())
+
+
 class _Geometry:
     """The unit-area, centred mesh and the quantities several groups share, each computed once."""
 
@@ -687,38 +692,9 @@ def _average_geodesic_distance(mesh: Mesh, n_sources: int) -> np.ndarray:
     return total / component_area[component]
 
 
-def _factor_spd(matrix):
-    """SuperLU factors of a sparse symmetric positive definite matrix (CSC).
-
-    A symmetric ordering and no pivoting keep the factor small: on a 28K-face
-    Laplacian 40 % less fill than SuperLU's default column ordering and a
-    solve three to four times faster.
-    """
-    from scipy.sparse.linalg import splu
-
-    return splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-
-
 def _heat_kernel_signature(mesh: Mesh, n_pairs: int, times: np.ndarray) -> np.ndarray:
     """(V, len(times)) log heat-trace-normalised HKS from the low end of the spectrum (module docstring)."""
-    import igl
-    from scipy.sparse.linalg import LinearOperator, eigsh
-
-    v, f = mesh.vertices, mesh.faces
-    stiffness = -igl.cotmatrix(v, f).tocsc()  # positive semi-definite
-    mass = igl.massmatrix(v, f, igl.MASSMATRIX_TYPE_VORONOI).tocsc()
-    k = min(n_pairs, mesh.n_vertices - 2)
-    # shift-invert just below 0: the smallest eigenvalues, with a positive definite factorisation (our SPD
-    # factor instead of eigsh's own, SuperLU's default ordering: the same values, to 1e-13, a quarter faster).
-    # Ritz values to 1e-6 instead of machine precision: 163 solves instead of 196 on PSB meshes of 14K-49K
-    # faces, and the signature moves by at most 1.4e-7 (relative), below the network's float32 resolution.
-    # A fixed start vector: ARPACK's own changes from call to call, which a loose tolerance would let show.
-    shift = -1e-3
-    inverse = _factor_spd((stiffness - shift * mass).tocsc())
-    start = np.random.default_rng(0).standard_normal(stiffness.shape[0])
-    values, vectors = eigsh(stiffness, k=k, M=mass, sigma=shift, which="LM", tol=HKS_TOLERANCE, v0=start,
-                            OPinv=LinearOperator(stiffness.shape, matvec=inverse.solve, dtype=float))
-    values = np.maximum(values, 0.0)
+    values, vectors = laplacian_eigenpairs(mesh, n_pairs)
     decay = np.exp(-np.outer(values, times))  # (k, T)
     signature = (vectors**2) @ decay  # (V, T)
     total_area = mesh.face_areas.sum()
@@ -806,7 +782,7 @@ def _diffusion_solves(mass, laplacian, rhs: np.ndarray, radii: Sequence[float], 
     if rhs.shape[0] <= DIRECT_SOLVE_MAX_VERTICES:
         # SuperLU lets go of the GIL for part of its work: the radii factor side by side where threads are allowed
         with ThreadPoolExecutor(max(1, min(len(systems), _threads_allowed()))) as pool:
-            factors = list(pool.map(_factor_spd, [system.tocsc() for system in systems]))
+            factors = list(pool.map(factor_spd, [system.tocsc() for system in systems]))
         return [lu.solve(rhs) for lu in factors]
     import pyamg  # here: small meshes, and the GPU machine that trains on them, need no pyamg
 
@@ -872,12 +848,12 @@ def compute(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = Tr
     mesh.validate()
     path = _cache_path(mesh, groups, cfg) if cache else None
     if path is not None:
-        cached = _read_cached(path, (mesh.n_faces, len(feature_names(groups, **settings))))
+        cached = read_checked_array(path, (mesh.n_faces, len(feature_names(groups, **settings))))
         if cached is not None:
             return cached
     matrix = np.concatenate(list(compute_groups(mesh, groups, progress=progress, **settings).values()), axis=1)
     if path is not None:
-        atomic_write(path, lambda tmp: _write_array(tmp, matrix))
+        atomic_write(path, lambda tmp: write_checked_array(tmp, matrix))
     return matrix
 
 
@@ -909,7 +885,7 @@ def compute_many(
     for i, mesh in enumerate(meshes):
         mesh.validate()
         if cache:
-            results[i] = _read_cached(_cache_path(mesh, groups, cfg), (mesh.n_faces, width))
+            results[i] = read_checked_array(_cache_path(mesh, groups, cfg), (mesh.n_faces, width))
         if results[i] is None:
             todo.append(i)
     if workers is None:
@@ -941,36 +917,3 @@ def _cache_path(mesh: Mesh, groups: tuple[str, ...], settings: FeatureSettings) 
     digest.update(mesh.vertices.tobytes())
     digest.update(mesh.faces.tobytes())
     return cache_dir("features") / f"{digest.hexdigest()}.npy"
-
-
-def _write_array(path: Path, array: np.ndarray) -> None:
-    """The array as .npy, then the sha256 of its data: flipped bytes are caught on reading, not trained on."""
-    with open(path, "wb") as handle:  # np.save(path) would append ".npy" to the temporary name
-        np.save(handle, array, allow_pickle=False)
-        handle.write(hashlib.sha256(np.ascontiguousarray(array).tobytes()).digest())
-
-
-def _read_cached(path: Path, shape: tuple[int, int]) -> np.ndarray | None:
-    """The cached matrix, or None when absent; a damaged entry is removed (with a warning)."""
-    if not path.is_file():
-        return None
-    try:
-        with open(path, "rb") as handle:
-            array = np.lib.format.read_array(handle, allow_pickle=False)
-            checksum = handle.read()
-        problem = None
-        if checksum != hashlib.sha256(array.tobytes()).digest():
-            problem = "checksum mismatch (damaged or truncated)"
-        elif array.shape != shape:
-            problem = f"shape {array.shape}, expected {shape}"
-        elif array.dtype != np.float32:
-            problem = f"dtype {array.dtype}, expected float32"
-        elif not np.isfinite(array).all():
-            problem = "non-finite values"
-    except (OSError, ValueError, EOFError) as exc:
-        problem = f"unreadable ({type(exc).__name__}: {exc})"
-    if problem is None:
-        return array
-    warnings.warn(f"damaged feature cache entry {path}: {problem}; recomputing", RuntimeWarning, stacklevel=3)
-    path.unlink(missing_ok=True)
-    return None

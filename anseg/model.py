@@ -7,9 +7,9 @@ share's softmax sees (as -inf).
 
 Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
 
-    x (F, in) --embed MLP--> e (F, W)
+    x (F, in) --embed MLP--> e (F, W)  [--diffusion blocks--> e (F, W), optional]
     per-face score s = w.e; share = softmax of s over the patch's faces
-    token = sum of share * e over its faces (+ optional positional signal)  (T, W)
+    token = sum of share * e over its faces (+ optional positional signals)  (T, W)
     depth x pre-norm block: h += Attn(LN h); h += MLP(LN h)       (T, W)
     logits = head([e, LN(h)[patch]])                              (F, C)
     attention = received mass of the token (last block) x share x F  (F,)
@@ -41,6 +41,19 @@ Choices, and why:
   absolute position in the sequence carries no meaning that transfers; it is exposed
   as a parameter to be measured (Fourier features of the normalised position t/(T-1)
   through a learned Linear).
+- **Spatial context on the surface** (both off by default; they read the mesh's
+  Laplacian eigenbasis, :class:`SpectralInput`, which the pipeline carries to coarse
+  levels through the collapse records). Tokens are a set of patches: without these
+  the network knows what a patch looks like, not where it sits relative to the others.
+  ``position_pairs`` > 0: the first that many non-constant eigenvectors, pooled into
+  each token by the share, through a learned Linear added to the token. An
+  eigenvector's sign is arbitrary, so in training every one is flipped at random at
+  every forward pass (the network must not rely on it). ``diffusion_blocks`` > 0:
+  blocks of learned heat diffusion on the faces, after the embedding (so the tokens,
+  the head and the attention all read it): e += MLP([e, D_t e]) with D_t e =
+  Phi exp(-Lambda t) Phi^T M e, one learned time t per channel (DiffusionNet's
+  spectral diffusion, Sharp et al. 2022); unchanged by the eigenvectors' signs, and
+  by any rotation inside an eigenspace whose eigenvalues are equal.
 - **Depth 0** is the paper's "without downsampling" control (Table IV): no tokens, no
   transformer and no attention module, a per-face classifier on the features alone
   (logits = head(e)); its attention is flat (1 at every face).
@@ -91,6 +104,9 @@ class ModelConfig:
     coarse_levels: int = 0  # coarser levels whose context the input level's second head reads (module docstring)
     detach_share: bool = False  # the attention loss reaches the share only through the tokens (module docstring)
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
+    spectral_pairs: int = 0  # eigenpairs of the SpectralInput the model reads (0: none)
+    position_pairs: int = 0  # non-constant eigenvectors pooled into each token (module docstring)
+    diffusion_blocks: int = 0  # learned diffusion blocks on the faces (module docstring)
 
     def __post_init__(self) -> None:
         for name in ("in_features", "n_classes", "width", "heads", "patch_size"):
@@ -106,8 +122,29 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.init_std must be > 0, got {self.init_std}")
         if self.position_frequencies < 0:
             raise ValueError(f"ModelConfig.position_frequencies must be >= 0, got {self.position_frequencies}")
+        if self.position_pairs < 0 or self.diffusion_blocks < 0:
+            raise ValueError(f"ModelConfig.position_pairs and diffusion_blocks must be >= 0, got "
+                             f"{self.position_pairs} and {self.diffusion_blocks}")
+        if (self.position_pairs or self.diffusion_blocks) and self.spectral_pairs <= self.position_pairs:
+            raise ValueError(f"ModelConfig.spectral_pairs ({self.spectral_pairs}) must exceed position_pairs "
+                             f"({self.position_pairs}) when the model reads a spectrum")
+        if self.position_pairs and not self.depth:
+            raise ValueError("ModelConfig.position_pairs needs tokens (depth > 0)")
         if self.coarse_levels < 0 or (self.coarse_levels and not self.depth):
             raise ValueError(f"ModelConfig.coarse_levels must be >= 0, and needs depth > 0, got {self.coarse_levels}")
+
+
+class SpectralInput(NamedTuple):
+    """One level's eigenbasis: ``basis`` (F, k) per face, ``values`` (k,) eigenvalues, ``mass`` (F,) face areas summing to 1.
+
+    On a coarse level the basis is the area-weighted mean of the input faces'
+    (:func:`anseg.pipeline.build_levels`), still orthonormal under the
+    coarse faces' areas up to the collapse's error.
+    """
+
+    basis: torch.Tensor
+    values: torch.Tensor
+    mass: torch.Tensor
 
 
 class Output(NamedTuple):
@@ -210,6 +247,22 @@ class SelfAttention(nn.Module):
         return self.dropout(self.proj(out[0].transpose(0, 1).reshape(n_tokens, width))), q[0], k[0]
 
 
+class SpectralDiffusion(nn.Module):
+    """e + MLP([e, D_t e]), D_t the heat diffusion through the eigenbasis, one learned time per channel (module docstring)."""
+
+    def __init__(self, width: int):
+        super().__init__()
+        # times from 1e-3 to 1e-1 on the unit-area mesh: from a few faces' width to a limb's length at the start
+        self.log_time = nn.Parameter(torch.linspace(math.log(1e-3), math.log(1e-1), width))
+        self.mlp = nn.Sequential(nn.Linear(2 * width, width), nn.GELU(), nn.Linear(width, width))
+
+    def forward(self, e: torch.Tensor, spectrum: SpectralInput) -> torch.Tensor:
+        coefficients = spectrum.basis.T @ (spectrum.mass.unsqueeze(1) * e)  # (k, W)
+        decay = torch.exp(-spectrum.values.unsqueeze(1) * self.log_time.exp().unsqueeze(0))  # (k, W)
+        diffused = spectrum.basis @ (coefficients * decay)
+        return e + self.mlp(torch.cat([e, diffused], dim=1))
+
+
 class Block(nn.Module):
     """Pre-norm transformer block: h + Attn(LN h), then + MLP(LN h)."""
 
@@ -243,6 +296,8 @@ class AttentionSegmenter(nn.Module):
         self.embed = nn.Sequential(*layers, *([nn.LayerNorm(width)] if config.embed_norm else []))
         self.share_score = nn.Linear(width, 1)
         self.position = nn.Linear(2 * config.position_frequencies, width) if config.position_frequencies else None
+        self.spectral_position = nn.Linear(config.position_pairs, width) if config.position_pairs else None
+        self.diffusion = nn.ModuleList(SpectralDiffusion(width) for _ in range(config.diffusion_blocks))
         self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))
         self.norm_out = nn.LayerNorm(width)
         context = width if config.depth else 0  # depth 0: the face's own embedding only
@@ -261,7 +316,7 @@ class AttentionSegmenter(nn.Module):
 
     def forward(
         self, x: torch.Tensor, layout: PatchLayout, need_attention: bool = True, attention_grad: bool = False,
-        coarse: torch.Tensor | None = None,
+        coarse: torch.Tensor | None = None, spectrum: SpectralInput | None = None,
     ) -> Output:
         """Logits (F, C), attention (F,), and context (T, W) with each face's token (F,) of one mesh.
 
@@ -273,6 +328,7 @@ class AttentionSegmenter(nn.Module):
         returns attention with its gradient (see the module docstring).
         ``coarse`` (F, coarse_levels x W): the context of each face's face on
         the coarser levels, read by the coarse-context head (input level only).
+        ``spectrum``: the level's eigenbasis, for a model with ``spectral_pairs``.
 
         The per-face layers run on the F faces, not on the padded grid, and
         the head's columns that read the token's context act once per token
@@ -287,6 +343,9 @@ class AttentionSegmenter(nn.Module):
         if coarse is not None and (self.context_head is None or coarse.shape != (x.shape[0], self.config.coarse_levels * self.config.width)):
             raise ValueError(f"coarse context must be (faces, {self.config.coarse_levels} x {self.config.width}) "
                              f"for a model with coarse_levels={self.config.coarse_levels}, got {tuple(coarse.shape)}")
+        if self.config.spectral_pairs and (spectrum is None or spectrum.basis.shape != (x.shape[0], self.config.spectral_pairs)):
+            raise ValueError(f"this model reads a spectrum of {self.config.spectral_pairs} eigenpairs per face, got "
+                             f"{None if spectrum is None else tuple(spectrum.basis.shape)}")
         if not layout.mask.any(axis=1).all():
             raise ValueError("every patch needs at least one real face")
         if x.dtype != self.norm_out.weight.dtype:
@@ -295,6 +354,8 @@ class AttentionSegmenter(nn.Module):
         if not bool(torch.isfinite(x.sum())) and not bool(torch.isfinite(x).all()):
             raise ValueError("features hold NaN or inf at real faces")
         embedded = self.embed(x)
+        for block in self.diffusion:
+            embedded = block(embedded, spectrum)
         if not self.blocks:  # the per-face classifier (module docstring)
             if attention_grad:
                 raise ValueError("a depth-0 model has no attention to train")
@@ -306,6 +367,8 @@ class AttentionSegmenter(nn.Module):
         h = embedded.new_zeros(layout.n_patches, embedded.shape[1]).index_add(0, patch, share.unsqueeze(1) * embedded)
         if self.position is not None:
             h = h + self.position(self._position_features(layout.n_patches, h.device))
+        if self.spectral_position is not None:
+            h = h + self.spectral_position(self._spectral_positions(spectrum, share, patch, layout.n_patches))
         for block in self.blocks:
             h, q, k = block(h)
         context = self.norm_out(h)
@@ -331,6 +394,15 @@ class AttentionSegmenter(nn.Module):
         if coarse is not None:
             hidden = hidden + F.linear(coarse, first.weight[:, 2 * width :])
         return head[1:](hidden)
+
+    def _spectral_positions(self, spectrum: SpectralInput, share: torch.Tensor, patch: torch.Tensor,
+                            n_tokens: int) -> torch.Tensor:
+        """(T, position_pairs): the non-constant eigenvectors pooled by the share, each sign flipped at random in training."""
+        vectors = spectrum.basis[:, 1 : 1 + self.config.position_pairs]
+        if self.training:
+            signs = torch.randint(0, 2, (vectors.shape[1],), device=vectors.device) * 2 - 1
+            vectors = vectors * signs.to(vectors.dtype)
+        return vectors.new_zeros(n_tokens, vectors.shape[1]).index_add(0, patch, share.unsqueeze(1) * vectors)
 
     def _position_features(self, n_tokens: int, device: torch.device) -> torch.Tensor:
         """sin/cos of 2^j pi t/(T-1), j < position_frequencies: (T, 2 x frequencies)."""

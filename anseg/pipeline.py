@@ -55,13 +55,13 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 import torch
 
-from anseg import collapse, features
+from anseg import collapse, features, spectral
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout, layout
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
 from anseg.mesh import Mesh
-from anseg.model import AttentionSegmenter, ModelConfig, Output
+from anseg.model import AttentionSegmenter, ModelConfig, Output, SpectralInput
 
 # how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
@@ -204,6 +204,7 @@ class Level:
     attention: np.ndarray | None = None
     record: collapse.CollapseRecord | None = None
     logits: torch.Tensor | None = field(default=None, repr=False)  # kept from the pass that computed the attention
+    spectrum: spectral.Spectrum | None = field(default=None, repr=False)  # for a model that reads the eigenbasis
 
     def feature_matrix(self, level: int, n_levels: int, local_scale: str = "unit_area") -> np.ndarray:
         """The model's raw input: the feature groups side by side (as :func:`input_groups` reads them), then the level column."""
@@ -245,10 +246,12 @@ def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, n
 def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, device) -> dict:
     """The network's arguments for one level: its standardised features (a tensor on ``device``) and its patch layout."""
     x = model.standardize(level.feature_matrix(index, n_levels, model.config.local_scale))
-    return {
-        "x": torch.as_tensor(x, device=device),
-        "layout": level.layout,
-    }
+    inputs = {"x": torch.as_tensor(x, device=device), "layout": level.layout}
+    if model.network.config.spectral_pairs:
+        area = level.mesh.face_areas
+        inputs["spectrum"] = SpectralInput(*(torch.as_tensor(a, dtype=torch.float32, device=device) for a in
+                                             (level.spectrum.basis, level.spectrum.values, area / area.sum())))
+    return inputs
 
 
 def collapse_weights(attention: np.ndarray, density_range: float) -> np.ndarray:
@@ -279,13 +282,14 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
         groups = features.compute_groups(mesh, config.groups, cache=True, progress=progress)
     levels = []
     current, current_groups = mesh, groups
+    current_spectrum = spectral.face_spectrum(mesh) if model.network.config.spectral_pairs else None
     for index in range(config.n_levels):
         if index == 0 and first_layout is not None:
             patches = first_layout
         else:
             x = np.concatenate(list(input_groups(current_groups, config.local_scale).values()), axis=1)
             patches = layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed)
-        level = Level(current, current_groups, patches)
+        level = Level(current, current_groups, patches, spectrum=current_spectrum)
         levels.append(level)
         if index == config.n_levels - 1:
             break
@@ -301,6 +305,9 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
                                                     seed=config.seed + index, once_per_pass=config.once_per_pass,
                                                     priority=config.priority)
         current_groups = coarse_groups(level, current, level.record, config.groups)
+        if current_spectrum is not None:
+            current_spectrum = spectral.Spectrum(current_spectrum.values, collapse.pool(
+                level.record, current_spectrum.basis, level.mesh.face_areas).astype(np.float32))
     return levels
 
 

@@ -51,6 +51,7 @@ from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout
 from anseg.metrics import pooled_accuracy
 from anseg.model import AttentionSegmenter, ModelConfig
+from anseg.spectral import SPECTRUM_PAIRS
 from anseg.pipeline import (
     SegmentConfig,
     Segmenter,
@@ -99,6 +100,8 @@ class TrainConfig:
     recollapse_every: int = 5
     attention_weight: float = 1.0
     boundary_rings: int = 2
+    position_pairs: int = 0
+    diffusion_blocks: int = 0
     seed: int = 0
     device: str = "auto"
 
@@ -239,6 +242,8 @@ def fit(
             in_features=len(mean), n_classes=len(label_names), width=train.width, depth=train.depth,
             heads=train.heads, patch_size=config.patch_size, dropout=train.dropout, embed_norm=train.embed_norm,
             coarse_levels=config.n_levels - 1 if train.coarse_context else 0, detach_share=train.detach_share,
+            spectral_pairs=SPECTRUM_PAIRS if train.position_pairs or train.diffusion_blocks else 0,
+            position_pairs=train.position_pairs, diffusion_blocks=train.diffusion_blocks,
         )
     ).to(device)
     model = Segmenter(network, config, mean, std, list(label_names))

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from anseg import datasets, features
+from anseg import cache, datasets, features
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig, fit
 
@@ -78,4 +78,4 @@ def test_two_processes_filling_the_same_cache_entry_both_succeed(tmp_path):
     assert outputs[0] == outputs[1]
     entries = list((tmp_path / "features").iterdir())
     assert len(entries) == 1 and entries[0].suffix == ".npy"  # one entry, no temporary file left behind
-    assert features._read_cached(entries[0], np.load(entries[0]).shape) is not None  # its checksum holds
+    assert cache.read_checked_array(entries[0], np.load(entries[0]).shape) is not None  # its checksum holds

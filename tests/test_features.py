@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
 
-from anseg import collapse, features
+from anseg import cache, collapse, features
 from anseg.mesh import Mesh, MeshError
 from conftest import grid_mesh
 
@@ -276,7 +276,7 @@ def test_hks_with_our_spd_factor_is_eigsh_with_its_own():
     values, vectors = eigsh(stiffness.tocsc(), k=16, M=mass.tocsc(), sigma=-1e-3, which="LM")
     decay = np.exp(-np.outer(np.maximum(values, 0.0), features.HKS_TIMES))
     theirs = np.log(np.maximum((vectors**2) @ decay * mesh.face_areas.sum() / decay.sum(axis=0), 1e-12))
-    # ours asks for eigenvalues to HKS_TOLERANCE only: the same signature to well under float32 resolution
+    # ours asks for eigenvalues to spectral.EIGEN_TOLERANCE only: the same signature to well under float32 resolution
     np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-6)
 
 
@@ -342,8 +342,8 @@ def _flip_a_bit(data: bytes) -> bytes:
         lambda path: path.write_bytes(path.read_bytes()[: len(path.read_bytes()) // 2]),
         lambda path: path.write_bytes(path.read_bytes()[:-1]),
         lambda path: np.save(path, np.zeros((3, 3), dtype=np.float32)),
-        lambda path: features._write_array(path, np.full(np.load(path).shape, np.nan, dtype=np.float32)),
-        lambda path: features._write_array(path, np.zeros((3, 3), dtype=np.float32)),
+        lambda path: cache.write_checked_array(path, np.full(np.load(path).shape, np.nan, dtype=np.float32)),
+        lambda path: cache.write_checked_array(path, np.zeros((3, 3), dtype=np.float32)),
         lambda path: path.write_bytes(_flip_a_bit(path.read_bytes())),
     ],
     ids=["truncated", "checksum-cut", "no-checksum", "non-finite", "wrong-shape", "flipped-bit"],
@@ -353,7 +353,7 @@ def test_a_damaged_cache_entry_is_detected_and_recomputed(cache_root, damage):
     first = features.compute(mesh, **FAST)
     (entry,) = cache_root.glob("*.npy")
     damage(entry)
-    with pytest.warns(RuntimeWarning, match="damaged feature cache entry"):
+    with pytest.warns(RuntimeWarning, match="damaged cache entry"):
         again = features.compute(mesh, **FAST)
     np.testing.assert_array_equal(again, first)
     np.testing.assert_array_equal(np.load(entry), first)
