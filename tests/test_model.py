@@ -15,6 +15,7 @@ from anseg.cluster import PatchLayout, patches
 from anseg.model import (
     AttentionSegmenter,
     ModelConfig,
+    SpectralInput,
     load,
     received_attention,
     save,
@@ -246,3 +247,51 @@ def test_detach_share_cuts_the_attention_loss_direct_path_through_the_share():
         assert model.blocks[-1].attention.qkv.weight.grad.abs().sum() > 0
     torch.testing.assert_close(values[0], values[1])  # the same attention, another gradient
     assert not torch.allclose(grads[0], grads[1])
+
+
+def spectral_problem(**config):
+    """A model that reads a spectrum, with an orthonormal random basis (its first column constant) and its mass."""
+    g = torch.Generator().manual_seed(1)
+    n_faces, pairs = 150, 12
+    torch.manual_seed(0)
+    model = AttentionSegmenter(ModelConfig(in_features=5, n_classes=3, width=16, depth=1, heads=2, patch_size=8,
+                                           spectral_pairs=pairs, **config)).eval()
+    mass = torch.full((n_faces,), 1.0 / n_faces)
+    basis, _ = torch.linalg.qr(torch.cat([torch.ones(n_faces, 1), torch.randn(n_faces, pairs - 1, generator=g)], 1))
+    spectrum = SpectralInput(basis * math.sqrt(n_faces), torch.linspace(0, 200, pairs), mass)
+    return model, torch.randn(n_faces, 5, generator=g), random_layout(n_faces, 8, g, clusters=2), spectrum
+
+
+def test_learned_diffusion_ignores_the_signs_of_the_eigenvectors():
+    model, x, layout, spectrum = spectral_problem(diffusion_blocks=2)
+    flipped = spectrum._replace(basis=spectrum.basis * torch.tensor([1.0, -1.0] * 6))
+    np.testing.assert_allclose(model(x, layout, spectrum=spectrum).logits.detach(),
+                               model(x, layout, spectrum=flipped).logits.detach(), atol=1e-5)
+    # and it reads the basis: another basis gives other logits
+    other = spectrum._replace(basis=spectrum.basis.roll(1, dims=0))
+    assert not torch.allclose(model(x, layout, spectrum=spectrum).logits, model(x, layout, spectrum=other).logits)
+
+
+def test_spectral_positions_flip_signs_in_training_only():
+    model, x, layout, spectrum = spectral_problem(position_pairs=4)
+    with torch.no_grad():
+        assert torch.equal(model(x, layout, spectrum=spectrum).logits, model(x, layout, spectrum=spectrum).logits)
+        model.train()
+        torch.manual_seed(3)
+        outputs = {tuple(model(x, layout, spectrum=spectrum).logits[0].tolist()) for _ in range(8)}
+    assert len(outputs) > 1  # 8 draws of 4 signs: the positions moved
+
+
+def test_a_model_that_reads_a_spectrum_refuses_to_run_without_one():
+    model, x, layout, spectrum = spectral_problem(diffusion_blocks=1)
+    with pytest.raises(ValueError, match="spectrum of 12 eigenpairs"):
+        model(x, layout)
+    with pytest.raises(ValueError, match="must exceed position_pairs"):
+        ModelConfig(in_features=5, n_classes=3, spectral_pairs=4, position_pairs=4)
+
+
+def test_a_spectral_model_saves_and_loads(tmp_path):
+    model, x, layout, spectrum = spectral_problem(diffusion_blocks=1, position_pairs=3)
+    save(model, tmp_path / "m.pt")
+    again = load(tmp_path / "m.pt")
+    assert torch.equal(model(x, layout, spectrum=spectrum).logits, again(x, layout, spectrum=spectrum).logits)

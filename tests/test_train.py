@@ -211,3 +211,26 @@ def test_only_attention_makes_a_rebuild(split, monkeypatch):
     assert len(built) == 6
     input_sizes = {m.mesh.n_faces for m in train_set[:2]}
     assert sum(n in input_sizes for n in clustered) == 2  # the input levels were clustered at the first build only
+
+
+def test_spatial_context_trains_and_carries_the_eigenbasis_to_every_level(split):
+    from anseg import collapse
+    from anseg.pipeline import segment
+
+    train_set, test_set = split
+    model = fit(train_set[:2], train_set[0].label_names, SMALL,
+                TrainConfig(position_pairs=8, diffusion_blocks=1, epochs=2, width=16, depth=1), progress=False)
+    assert model.network.config.spectral_pairs == 64 and len(model.network.diffusion) == 1
+    result = segment(test_set[0].mesh, model)
+    assert result.labels.shape == (test_set[0].mesh.n_faces,)
+    levels = result.levels
+    for fine, coarse in zip(levels, levels[1:]):
+        assert coarse.spectrum.basis.shape == (coarse.mesh.n_faces, 64)
+        expected = collapse.pool(fine.record, fine.spectrum.basis, fine.mesh.face_areas)
+        np.testing.assert_allclose(coarse.spectrum.basis, expected, rtol=1e-5, atol=1e-6)
+
+
+def test_spatial_context_switches_leave_the_keys_alone_at_zero():
+    base = _v1_human()
+    assert replace(base, train=replace(base.train, position_pairs=0, diffusion_blocks=0)).key() == base.key()
+    assert replace(base, train=replace(base.train, diffusion_blocks=1)).key() != base.key()
