@@ -84,7 +84,7 @@ class Experiment:
 
 
 def environment() -> dict:
-    """Versions and hardware, recorded beside every result."""
+    """Versions, hardware and the code revision, recorded beside every result."""
     import sklearn
     import trimesh
 
@@ -93,7 +93,29 @@ def environment() -> dict:
         "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
         "cpus": os.cpu_count(), "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+        **code_revision(),
     }
+
+
+def code_revision(root: Path = REPO) -> dict:
+    """The git commit the package runs from and whether its code differs from it (None for both outside a checkout).
+
+    ``code_clean`` looks at the tracked files of the package and its build
+    file only: a study writes its results into the same checkout, and those
+    writes change no code.
+    """
+    import subprocess
+
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=30)
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
+
+    revision = git("rev-parse", "HEAD")
+    changes = git("status", "--porcelain", "--untracked-files=no", "--", "anseg", "pyproject.toml") if revision else None
+    return {"code_revision": revision, "code_clean": None if changes is None else not changes}
 
 
 def trained_on(result: dict) -> str:

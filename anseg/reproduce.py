@@ -56,10 +56,12 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
                   "output_dir": os.path.relpath(results_root, NOTEBOOKS)}
         started = time.time()
         print(f"[anseg] {name} ({kind}) ...", flush=True)
+        # executed aside and moved into place only on success: a failed run never replaces the executed copy
+        attempt = executed_dir / failed_name(name)
         try:
             papermill.execute_notebook(  # paths as relative as they can be: papermill records them
                 os.path.relpath(NOTEBOOKS / name),
-                os.path.relpath(executed_dir / name),
+                os.path.relpath(attempt),
                 parameters=params,
                 kernel_name=kernel,
                 cwd=str(NOTEBOOKS),
@@ -67,12 +69,19 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
             )
         except Exception as exc:  # papermill re-raises the cell's error; report and go on to the next notebook
             failed += 1
-            print(f"[anseg] {name} FAILED after {time.time() - started:.0f} s: {exc}", file=sys.stderr)
+            print(f"[anseg] {name} FAILED after {time.time() - started:.0f} s: {exc}\n"
+                  f"[anseg] {executed_dir / name} is left as it was; the failed run is in {attempt}", file=sys.stderr)
             continue
+        os.replace(attempt, executed_dir / name)
         print(f"[anseg] {name} done in {time.time() - started:.0f} s -> {executed_dir / name}", flush=True)
     if kind == "real" and out is None and not failed and (results_root / "results" / "table4_ablation.csv").is_file():
         update_readme(REPO / "README.md", results_root / "results")
     return failed
+
+
+def failed_name(name: str) -> str:
+    """Where a notebook is executed before it is known to succeed (and stays when it fails); git ignores it."""
+    return f"{Path(name).stem}.failed.ipynb"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -102,3 +102,26 @@ def test_the_slurm_job_script_starts_one_thread_workers_with_the_gpu_resource():
     script = run.stdout
     assert "#SBATCH --gres=gpu:1" in script and "--resources GPU=1" in script and "--nthreads 1" in script
     assert "export OMP_NUM_THREADS=1" in script and "distributed.cli.dask_worker" in script
+
+
+def test_every_record_names_the_code_revision_and_whether_its_code_was_clean(tmp_path):
+    import subprocess
+
+    from anseg.experiments import REPO, code_revision, environment
+
+    record = environment()
+    assert {"code_revision", "code_clean"} <= record.keys()
+    if (REPO / ".git").exists():
+        head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+        assert record["code_revision"] == head
+    # outside a checkout both are unknown, not guessed
+    assert code_revision(tmp_path) == {"code_revision": None, "code_clean": None}
+    subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
+    (tmp_path / "anseg").mkdir()
+    (tmp_path / "anseg" / "m.py").write_text("x = 1\n")
+    git = ["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-qm", "c"], check=True)
+    assert code_revision(tmp_path)["code_clean"] is True
+    (tmp_path / "anseg" / "m.py").write_text("x = 2\n")
+    assert code_revision(tmp_path)["code_clean"] is False

@@ -126,3 +126,28 @@ def test_headline_adds_the_mean_over_splits_when_there_are_several(tmp_path):
     header = next(line for line in lines if line.startswith("| category | ours |"))
     assert header.endswith("| ours, 3 splits | std |")
     assert next(line for line in lines if line.startswith("| **mean** |")).endswith("| 50.00 | 1.50 |")
+
+
+def test_a_failed_notebook_never_replaces_its_executed_copy(tmp_path, monkeypatch, capsys):
+    import papermill
+
+    from anseg import reproduce
+
+    name = next(iter(PER_NOTEBOOK))
+    executed = tmp_path / "notebooks" / name
+    executed.parent.mkdir(parents=True)
+    executed.write_text("the committed copy")
+
+    def execute(source, target, **kwargs):
+        Path(target).write_text("ends in an error cell")
+        raise RuntimeError("the model of run x is not on this machine")
+
+    monkeypatch.setattr(papermill, "execute_notebook", execute)
+    assert reproduce.run("smoke", only=[name], out=tmp_path) == 1
+    assert executed.read_text() == "the committed copy"
+    assert (executed.parent / reproduce.failed_name(name)).read_text() == "ends in an error cell"
+    assert "is left as it was" in capsys.readouterr().err
+
+    monkeypatch.setattr(papermill, "execute_notebook", lambda source, target, **kwargs: Path(target).write_text("new run"))
+    assert reproduce.run("smoke", only=[name], out=tmp_path) == 0
+    assert executed.read_text() == "new run" and not (executed.parent / reproduce.failed_name(name)).exists()
