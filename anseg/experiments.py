@@ -42,7 +42,8 @@ SETTINGS_ADDED_LATER = {
     "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
                 "concave_discount": 3.0, "passes": 1},
     "train": {"embed_norm": False, "schedule": "constant", "coarse_context": False, "detach_share": False,
-              "average_last": 0, "position_pairs": 0, "diffusion_blocks": 0},
+              "average_last": 0, "position_pairs": 0, "diffusion_blocks": 0,
+              "heat_bias_pairs": 0},
 }
 # The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
 # from other features has other keys, so no stored result or model is reused across a change of features.

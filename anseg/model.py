@@ -53,7 +53,11 @@ Choices, and why:
   the head and the attention all read it): e += MLP([e, D_t e]) with D_t e =
   Phi exp(-Lambda t) Phi^T M e, one learned time t per channel (DiffusionNet's
   spectral diffusion, Sharp et al. 2022); unchanged by the eigenvectors' signs, and
-  by any rotation inside an eigenspace whose eigenvalues are equal.
+  by any rotation inside an eigenspace whose eigenvalues are equal. ``heat_bias_pairs``
+  > 0: an additive attention bias between tokens, a heat kernel on their pooled
+  eigenvector coordinates at a few times, weighted per block and head
+  (:meth:`AttentionSegmenter._heat_columns`); being of rank P it enters as P more
+  query and key columns, so attention keeps the flash kernel and O(T) memory.
 - **Depth 0** is the paper's "without downsampling" control (Table IV): no tokens, no
   transformer and no attention module, a per-face classifier on the features alone
   (logits = head(e)); its attention is flat (1 at every face).
@@ -82,6 +86,8 @@ from torch import nn
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout
 
+# The heat-kernel attention bias's diffusion times on the unit-area mesh: from a few tokens' reach to a limb's
+HEAT_BIAS_TIMES = (0.005, 0.02, 0.08)
 # Scores in one chunk of received_attention: 4 MiB of float32, small enough to stay near the core
 # between the passes over it. On this project's 2-core VM (2 MiB of L2 a core), forward and backward,
 # 16 MiB chunks took 1.3-1.6x as long at 1.5K-3K tokens (1.1x at 12.5K), 1 MiB chunks no less.
@@ -107,6 +113,7 @@ class ModelConfig:
     spectral_pairs: int = 0  # eigenpairs of the SpectralInput the model reads (0: none)
     position_pairs: int = 0  # non-constant eigenvectors pooled into each token (module docstring)
     diffusion_blocks: int = 0  # learned diffusion blocks on the faces (module docstring)
+    heat_bias_pairs: int = 0  # non-constant eigenvectors of the heat-kernel attention bias (module docstring)
 
     def __post_init__(self) -> None:
         for name in ("in_features", "n_classes", "width", "heads", "patch_size"):
@@ -122,14 +129,15 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.init_std must be > 0, got {self.init_std}")
         if self.position_frequencies < 0:
             raise ValueError(f"ModelConfig.position_frequencies must be >= 0, got {self.position_frequencies}")
-        if self.position_pairs < 0 or self.diffusion_blocks < 0:
-            raise ValueError(f"ModelConfig.position_pairs and diffusion_blocks must be >= 0, got "
-                             f"{self.position_pairs} and {self.diffusion_blocks}")
-        if (self.position_pairs or self.diffusion_blocks) and self.spectral_pairs <= self.position_pairs:
-            raise ValueError(f"ModelConfig.spectral_pairs ({self.spectral_pairs}) must exceed position_pairs "
-                             f"({self.position_pairs}) when the model reads a spectrum")
-        if self.position_pairs and not self.depth:
-            raise ValueError("ModelConfig.position_pairs needs tokens (depth > 0)")
+        if min(self.position_pairs, self.diffusion_blocks, self.heat_bias_pairs) < 0:
+            raise ValueError(f"ModelConfig.position_pairs, diffusion_blocks and heat_bias_pairs must be >= 0, got "
+                             f"{self.position_pairs}, {self.diffusion_blocks} and {self.heat_bias_pairs}")
+        pairs = max(self.position_pairs, self.heat_bias_pairs)
+        if (pairs or self.diffusion_blocks) and self.spectral_pairs <= pairs:
+            raise ValueError(f"ModelConfig.spectral_pairs ({self.spectral_pairs}) must exceed position_pairs and "
+                             f"heat_bias_pairs ({pairs}) when the model reads a spectrum")
+        if pairs and not self.depth:
+            raise ValueError("ModelConfig.position_pairs and heat_bias_pairs need tokens (depth > 0)")
         if self.coarse_levels < 0 or (self.coarse_levels and not self.depth):
             raise ValueError(f"ModelConfig.coarse_levels must be >= 0, and needs depth > 0, got {self.coarse_levels}")
 
@@ -163,8 +171,8 @@ class Output(NamedTuple):
     patch: torch.Tensor | None = None
 
 
-def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = None) -> torch.Tensor:
-    """Attention mass each key receives: softmax(q k^T / sqrt(d)) averaged over queries and heads.
+def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = None, scale: float | None = None) -> torch.Tensor:
+    """Attention mass each key receives: softmax(scale q k^T) averaged over queries and heads (scale 1/sqrt(d) by default).
 
     ``q``, ``k``: (H, T, d). Returns (T,), summing to 1, differentiable in ``q`` and
     ``k``. Scores are formed ``chunk`` queries at a time (default: as many as fit in
@@ -178,7 +186,7 @@ def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = Non
         chunk = max(1, _CHUNK_ELEMENTS // (heads * n_tokens))
     if chunk < 1:
         raise ValueError(f"chunk must be >= 1, got {chunk}")
-    return _ReceivedAttention.apply(q, k, chunk)
+    return _ReceivedAttention.apply(q, k, chunk, 1.0 / math.sqrt(q.shape[-1]) if scale is None else scale)
 
 
 class _ReceivedAttention(torch.autograd.Function):
@@ -191,9 +199,9 @@ class _ReceivedAttention(torch.autograd.Function):
     """
 
     @staticmethod
-    def forward(ctx, q, k, chunk):
-        heads, n_tokens, dim = q.shape
-        queries, keys = q * (1.0 / math.sqrt(dim)), k.transpose(1, 2)
+    def forward(ctx, q, k, chunk, scale):
+        heads, n_tokens, _ = q.shape
+        queries, keys = q * scale, k.transpose(1, 2)
         mass = q.new_zeros(1, n_tokens)
         log_sum_exp = q.new_empty(heads, n_tokens, 1)
         for start in range(0, n_tokens, chunk):
@@ -205,14 +213,14 @@ class _ReceivedAttention(torch.autograd.Function):
             log_sum_exp[:, start : start + chunk] = row_max + row_sums.log()
             mass += torch.matmul(row_sums.reciprocal_().transpose(1, 2), weights).sum(dim=0)
         ctx.save_for_backward(q, k, log_sum_exp)
-        ctx.chunk = chunk
+        ctx.chunk, ctx.scale = chunk, scale
         return mass[0] / (heads * n_tokens)
 
     @staticmethod
     def backward(ctx, grad_mass):
         q, k, log_sum_exp = ctx.saved_tensors
-        heads, n_tokens, dim = q.shape
-        scale = 1.0 / math.sqrt(dim)
+        heads, n_tokens, _ = q.shape
+        scale = ctx.scale
         queries, keys = q * scale, k.transpose(1, 2)
         g = grad_mass / (heads * n_tokens)
         grad_q, grad_k = torch.empty_like(q), torch.zeros_like(k)
@@ -223,7 +231,7 @@ class _ReceivedAttention(torch.autograd.Function):
             grad_scores = (weights * g).sub_(weights.mul_(row_dot))
             grad_q[:, start:stop] = torch.matmul(grad_scores, k) * scale
             grad_k += torch.matmul(grad_scores.transpose(1, 2), q[:, start:stop]) * scale
-        return grad_q, grad_k, None
+        return grad_q, grad_k, None, None
 
 
 class SelfAttention(nn.Module):
@@ -237,13 +245,26 @@ class SelfAttention(nn.Module):
         # Dropout on the output, not on A: sdpa's dropout_p sends CPU to the path that stores all of A.
         self.dropout = nn.Dropout(config.dropout)
 
-    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(T, W) -> output (T, W), and the per-head queries and keys (H, T, d)."""
+    def forward(self, h: torch.Tensor, heat: tuple[torch.Tensor, torch.Tensor] | None = None
+                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(T, W) -> output (T, W), and the per-head queries and keys (H, T, d), scores at scale 1/sqrt(d).
+
+        ``heat``: the heat-kernel bias as extra query (H, T, P) and key (T, P)
+        columns (:meth:`AttentionSegmenter._heat_columns`); the returned queries
+        and keys then carry them, so the received attention sees the same scores.
+        """
         n_tokens, width = h.shape
+        dim = width // self.heads
         # (3, 1, H, T, d): the leading batch axis of 1 matters, the CPU flash kernel
         # wants 4-d input; 3-d input falls back to a path that stores all of A (5 GiB at 12.5K tokens).
-        q, k, v = self.qkv(h).view(n_tokens, 3, self.heads, width // self.heads).permute(1, 2, 0, 3).unsqueeze(1)
-        out = F.scaled_dot_product_attention(q, k, v)
+        q, k, v = self.qkv(h).view(n_tokens, 3, self.heads, dim).permute(1, 2, 0, 3).unsqueeze(1)
+        if heat is not None:
+            # a bias of rank P is P more columns: scale q_h'.k' = scale q.k + bias_h, and the flash kernel is kept
+            extra_q, extra_k = heat
+            q = torch.cat([q, extra_q.unsqueeze(0) * math.sqrt(dim)], dim=-1)
+            k = torch.cat([k, extra_k.expand(self.heads, -1, -1).unsqueeze(0)], dim=-1)
+            v = F.pad(v, (0, extra_k.shape[1]))  # one head dim for q, k and v, or CPU leaves the flash kernel
+        out = F.scaled_dot_product_attention(q, k, v, scale=1.0 / math.sqrt(dim))[..., :dim]
         return self.dropout(self.proj(out[0].transpose(0, 1).reshape(n_tokens, width))), q[0], k[0]
 
 
@@ -278,9 +299,10 @@ class Block(nn.Module):
             nn.Dropout(config.dropout),
         )
 
-    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(T, W) -> (T, W), plus this block's queries and keys (H, T, d)."""
-        update, q, k = self.attention(self.norm_attention(h))
+    def forward(self, h: torch.Tensor, heat: tuple[torch.Tensor, torch.Tensor] | None = None
+                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(T, W) -> (T, W), plus this block's queries and keys (H, T, d); ``heat`` as in :class:`SelfAttention`."""
+        update, q, k = self.attention(self.norm_attention(h), heat)
         h = h + update
         return h + self.mlp(self.norm_mlp(h)), q, k
 
@@ -298,6 +320,9 @@ class AttentionSegmenter(nn.Module):
         self.position = nn.Linear(2 * config.position_frequencies, width) if config.position_frequencies else None
         self.spectral_position = nn.Linear(config.position_pairs, width) if config.position_pairs else None
         self.diffusion = nn.ModuleList(SpectralDiffusion(width) for _ in range(config.diffusion_blocks))
+        # each block's and head's weight of every heat time; zero: the bias starts off, as plain attention
+        self.heat_weight = (nn.Parameter(torch.zeros(config.depth, config.heads, len(HEAT_BIAS_TIMES)))
+                            if config.heat_bias_pairs else None)
         self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))
         self.norm_out = nn.LayerNorm(width)
         context = width if config.depth else 0  # depth 0: the face's own embedding only
@@ -369,8 +394,9 @@ class AttentionSegmenter(nn.Module):
             h = h + self.position(self._position_features(layout.n_patches, h.device))
         if self.spectral_position is not None:
             h = h + self.spectral_position(self._spectral_positions(spectrum, share, patch, layout.n_patches))
-        for block in self.blocks:
-            h, q, k = block(h)
+        heat = self._heat_columns(spectrum, share, patch, layout.n_patches) if self.heat_weight is not None else None
+        for index, block in enumerate(self.blocks):
+            h, q, k = block(h, None if heat is None else (heat[0][index], heat[1]))
         context = self.norm_out(h)
         if coarse is not None:
             logits = self._head_on_faces(self.context_head, embedded, context, patch, coarse)
@@ -379,10 +405,10 @@ class AttentionSegmenter(nn.Module):
         attention = None
         if attention_grad:
             pooling = share.detach() if self.config.detach_share else share
-            attention = received_attention(q, k)[patch] * pooling * len(x)
+            attention = received_attention(q, k, scale=self._scale)[patch] * pooling * len(x)
         elif need_attention:
             with torch.no_grad():
-                attention = received_attention(q.detach(), k.detach())[patch] * share.detach() * len(x)
+                attention = received_attention(q.detach(), k.detach(), scale=self._scale)[patch] * share.detach() * len(x)
         return Output(logits, attention, context, patch)
 
     @staticmethod
@@ -394,6 +420,32 @@ class AttentionSegmenter(nn.Module):
         if coarse is not None:
             hidden = hidden + F.linear(coarse, first.weight[:, 2 * width :])
         return head[1:](hidden)
+
+    @property
+    def _scale(self) -> float:
+        """The attention's score scale, 1/sqrt(head dim) (the heat bias's extra columns leave it alone)."""
+        return 1.0 / math.sqrt(self.config.width // self.config.heads)
+
+    def _heat_columns(self, spectrum: SpectralInput, share: torch.Tensor, patch: torch.Tensor,
+                      n_tokens: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """The heat-kernel bias as extra columns: queries (depth, H, T, P) and keys (T, P).
+
+        Each token's coordinates are its faces' first P non-constant
+        eigenvectors pooled by the share and scaled to unit length (u_i); the
+        bias of head h between tokens i and j is sum_k g_h(k) u_ik u_jk with
+        the filter g_h(k) = sum_s w_hs exp(-lambda_k t_s) over the times
+        :data:`HEAT_BIAS_TIMES`: a heat kernel between the tokens' positions
+        on the surface, unchanged by the eigenvectors' signs (each appears
+        twice) and smooth in lambda, so near-equal eigenvalues' vectors may mix.
+        """
+        pairs = self.config.heat_bias_pairs
+        vectors = spectrum.basis[:, 1 : 1 + pairs]
+        pooled = vectors.new_zeros(n_tokens, pairs).index_add(0, patch, share.unsqueeze(1) * vectors)
+        keys = pooled / pooled.norm(dim=1, keepdim=True).clamp_min(1e-6)
+        times = torch.tensor(HEAT_BIAS_TIMES, dtype=keys.dtype, device=keys.device)
+        decay = torch.exp(-spectrum.values[1 : 1 + pairs].unsqueeze(0) * times.unsqueeze(1))  # (S, P)
+        filters = self.heat_weight @ decay  # (depth, H, P)
+        return filters.unsqueeze(2) * keys, keys
 
     def _spectral_positions(self, spectrum: SpectralInput, share: torch.Tensor, patch: torch.Tensor,
                             n_tokens: int) -> torch.Tensor:

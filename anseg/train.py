@@ -102,6 +102,7 @@ class TrainConfig:
     boundary_rings: int = 2
     position_pairs: int = 0
     diffusion_blocks: int = 0
+    heat_bias_pairs: int = 0
     seed: int = 0
     device: str = "auto"
 
@@ -242,8 +243,9 @@ def fit(
             in_features=len(mean), n_classes=len(label_names), width=train.width, depth=train.depth,
             heads=train.heads, patch_size=config.patch_size, dropout=train.dropout, embed_norm=train.embed_norm,
             coarse_levels=config.n_levels - 1 if train.coarse_context else 0, detach_share=train.detach_share,
-            spectral_pairs=SPECTRUM_PAIRS if train.position_pairs or train.diffusion_blocks else 0,
+            spectral_pairs=SPECTRUM_PAIRS if train.position_pairs or train.diffusion_blocks or train.heat_bias_pairs else 0,
             position_pairs=train.position_pairs, diffusion_blocks=train.diffusion_blocks,
+            heat_bias_pairs=train.heat_bias_pairs,
         )
     ).to(device)
     model = Segmenter(network, config, mean, std, list(label_names))
