@@ -273,8 +273,19 @@ def _count_distinct_rows(rows: np.ndarray, n_values: int) -> int:
 
 
 def _area_tolerance(mesh: Mesh) -> float:
-    diagonal = np.linalg.norm(np.ptp(mesh.vertices, axis=0)) if mesh.n_vertices else 0.0
+    """Below this a face counts as zero-area: relative to the extent of the vertices that faces use,
+    so that a stray unreferenced vertex far away (CAD exports leave them) does not make real faces degenerate."""
+    corners = mesh.vertices[mesh.faces].reshape(-1, 3)
+    diagonal = np.linalg.norm(np.ptp(corners, axis=0)) if len(corners) else 0.0
     return 1e-14 * diagonal * diagonal
+
+
+def _merge_identical_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One vertex per distinct coordinate triple, in order of first appearance; faces re-indexed, their order kept."""
+    _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty_like(first)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    return vertices[np.sort(first)], rank[inverse.reshape(-1)][faces]
 
 
 def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
@@ -283,27 +294,27 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     Returns the repaired mesh and ``face_map``, the input index of every
     repaired face (so that ``labels[face_map]`` carries per-face input labels
     over, and :func:`labels_for_input_faces` carries labels back). Vertices
-    with identical coordinates are merged; faces that then repeat a vertex,
-    have zero area or repeat another face's vertex set are dropped (the first
-    copy is kept); unused vertices are removed. Then every sheet of faces
+    that no face uses are dropped first (so that they neither count in the
+    scale of the zero-area test nor survive); vertices with identical
+    coordinates are merged; faces that then repeat a vertex, have zero area
+    or repeat another face's vertex set are dropped (the first copy is kept)
+    and the vertices only they used are removed. Then every sheet of faces
     around a non-manifold edge or vertex gets its own copies of the vertices
     there (:attr:`Mesh.corner_fans`), so that the result is manifold and the
-    faces keep their order. Non-finite coordinates and bad indices are not
-    repaired.
+    faces keep their order. Non-finite coordinates of used vertices and bad
+    indices are not repaired.
     """
     if mesh.n_faces == 0:
         raise MeshError("mesh is empty (no faces)")
-    if not np.isfinite(mesh.vertices).all():
-        raise MeshError("cannot repair NaN or infinite coordinates")
     if mesh.faces.min() < 0 or mesh.faces.max() >= mesh.n_vertices:
         raise MeshError("cannot repair faces that index missing vertices")
-    _, first, inverse = np.unique(mesh.vertices, axis=0, return_index=True, return_inverse=True)
-    rank = np.empty_like(first)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(first))  # merged vertices keep the input's order
-    faces = rank[inverse.reshape(-1)][mesh.faces]
-    vertices = mesh.vertices[np.sort(first)]
+    used, faces = np.unique(mesh.faces, return_inverse=True)  # sorted: the vertex order stays
+    if not np.isfinite(mesh.vertices[used]).all():
+        raise MeshError("cannot repair NaN or infinite coordinates")
+    vertices, faces = _merge_identical_vertices(mesh.vertices[used], faces.reshape(-1, 3))
+    merged = Mesh(vertices, faces)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
-    keep &= Mesh(vertices, faces).face_areas > _area_tolerance(mesh)
+    keep &= merged.face_areas > _area_tolerance(merged)
     _, unique_first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
     not_duplicate = np.zeros(len(faces), dtype=bool)
     not_duplicate[unique_first] = True

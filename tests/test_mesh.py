@@ -96,6 +96,37 @@ def test_load_errors(tmp_path):
         load_mesh(superscript)
 
 
+STRAY = [1e9, 1e9, 1e9]
+
+
+@pytest.mark.parametrize("extra_face, message", [(None, None), ("degenerate", "zero-area"), ("repeated", "repeat")])
+def test_an_unreferenced_far_vertex_changes_no_check(extra_face, message):
+    # CAD exports leave vertices that no face uses; far away, they once made every face "zero-area"
+    base = grid_mesh(4, closed=True)
+    extra = {None: np.zeros((0, 3), int), "degenerate": [[0, 1, 1]], "repeated": base.faces[:1]}[extra_face]
+    faces = np.vstack([base.faces, extra])
+    with_stray = Mesh(np.vstack([STRAY, base.vertices]), faces + 1)
+    if message is None:
+        Mesh(base.vertices, faces).validate()
+        with_stray.validate()
+        return
+    for mesh in (Mesh(base.vertices, faces), with_stray):
+        with pytest.raises(MeshError, match=message):
+            mesh.validate()
+
+
+def test_repair_drops_an_unreferenced_far_vertex_and_keeps_every_face():
+    base = grid_mesh(4, closed=True)
+    fixed, face_map = repair(Mesh(np.vstack([STRAY, base.vertices]), base.faces + 1))
+    assert face_map.tolist() == list(range(base.n_faces))
+    assert np.array_equal(fixed.faces, base.faces) and np.array_equal(fixed.vertices, base.vertices)
+    # a tiny real triangle still counts against the used vertices' scale, not the stray one's
+    v = np.vstack([STRAY, base.vertices, [[0, 0, 2], [1e-4, 0, 2], [0, 1e-4, 2]]])
+    n = len(v)
+    fixed, face_map = repair(Mesh(v, np.vstack([base.faces + 1, [n - 3, n - 2, n - 1]])))
+    assert len(face_map) == base.n_faces + 1
+
+
 @pytest.mark.parametrize(
     "vertices, faces, message",
     [
