@@ -32,8 +32,20 @@ def cache_dir(*parts: str) -> Path:
     return path
 
 
+def _umask() -> int:
+    """The process umask. Python reads it only by setting another, so the strictest is set
+    for that instant (a file another thread creates meanwhile is too private, never too open)."""
+    mask = os.umask(0o077)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
-    """Call ``write(tmp_path)`` and rename the result to ``path``; the temporary file never survives a failure."""
+    """Call ``write(tmp_path)`` and rename the result to ``path``; the temporary file never survives a failure.
+
+    The file gets the permissions the umask gives any new file (0666 & ~umask),
+    not the owner-only 0600 of the temporary file, so that outputs can be shared as usual.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     # the temporary name ends like the final one, for writers that pick the format by suffix
@@ -41,6 +53,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
     os.close(fd)
     try:
         write(Path(tmp))
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -43,9 +43,11 @@ def _add_data_options(parser: argparse.ArgumentParser) -> None:
 def _parser() -> argparse.ArgumentParser:
     from anseg import __version__
     from anseg.configs import NAMED
+    from anseg.mesh import SUPPORTED_SUFFIXES
     from anseg.pipeline import DOWNSAMPLING_MODES, SegmentConfig
 
     segment_defaults = SegmentConfig()
+    mesh_help = f"mesh file ({', '.join(SUPPORTED_SUFFIXES)})"
     parser = argparse.ArgumentParser(prog="anseg", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
     parser.add_argument("--version", action="version", version=f"anseg {__version__}")
@@ -69,7 +71,7 @@ def _parser() -> argparse.ArgumentParser:
     segment = commands.add_parser("segment", help="segment a mesh file with a trained model",
                                   description="Write a face-coloured PLY and a per-face label file (one 0-based label per line).")
     segment.add_argument("model", type=Path, help="model file written by `anseg train`")
-    segment.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
+    segment.add_argument("mesh", type=Path, help=mesh_help)
     segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
     segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
     segment.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
@@ -85,7 +87,7 @@ def _parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--json", type=Path, help="also write the scores to this JSON file")
 
     feats = commands.add_parser("features", help="compute per-face features of a mesh", description="Write the (F, D) per-face feature matrix as .npy.")
-    feats.add_argument("mesh", type=Path, help="mesh file (.off, .obj, .ply)")
+    feats.add_argument("mesh", type=Path, help=mesh_help)
     feats.add_argument("-o", "--output", required=True, type=Path, help=".npy file to write")
     feats.add_argument("--groups", default=",".join(segment_defaults.groups), help="comma-separated feature groups (default: %(default)s)")
     feats.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")

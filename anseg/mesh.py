@@ -23,7 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-SUPPORTED_SUFFIXES = (".off", ".obj", ".ply")
+SUPPORTED_SUFFIXES = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf")
+WRITABLE_SUFFIXES = (".off", ".obj", ".ply")
+# STL stores three vertices per triangle and glTF splits vertices at normal and UV seams:
+# only merged do the triangles of these formats share edges
+_PER_CORNER_SUFFIXES = (".stl", ".glb", ".gltf")
+_SCENE_SUFFIXES = (".glb", ".gltf")
 
 
 class MeshError(ValueError):
@@ -273,8 +278,19 @@ def _count_distinct_rows(rows: np.ndarray, n_values: int) -> int:
 
 
 def _area_tolerance(mesh: Mesh) -> float:
-    diagonal = np.linalg.norm(np.ptp(mesh.vertices, axis=0)) if mesh.n_vertices else 0.0
+    """Below this a face counts as zero-area: relative to the extent of the vertices that faces use,
+    so that a stray unreferenced vertex far away (CAD exports leave them) does not make real faces degenerate."""
+    corners = mesh.vertices[mesh.faces].reshape(-1, 3)
+    diagonal = np.linalg.norm(np.ptp(corners, axis=0)) if len(corners) else 0.0
     return 1e-14 * diagonal * diagonal
+
+
+def _merge_identical_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One vertex per distinct coordinate triple, in order of first appearance; faces re-indexed, their order kept."""
+    _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    rank = np.empty_like(first)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    return vertices[np.sort(first)], rank[inverse.reshape(-1)][faces]
 
 
 def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
@@ -283,27 +299,27 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     Returns the repaired mesh and ``face_map``, the input index of every
     repaired face (so that ``labels[face_map]`` carries per-face input labels
     over, and :func:`labels_for_input_faces` carries labels back). Vertices
-    with identical coordinates are merged; faces that then repeat a vertex,
-    have zero area or repeat another face's vertex set are dropped (the first
-    copy is kept); unused vertices are removed. Then every sheet of faces
+    that no face uses are dropped first (so that they neither count in the
+    scale of the zero-area test nor survive); vertices with identical
+    coordinates are merged; faces that then repeat a vertex, have zero area
+    or repeat another face's vertex set are dropped (the first copy is kept)
+    and the vertices only they used are removed. Then every sheet of faces
     around a non-manifold edge or vertex gets its own copies of the vertices
     there (:attr:`Mesh.corner_fans`), so that the result is manifold and the
-    faces keep their order. Non-finite coordinates and bad indices are not
-    repaired.
+    faces keep their order. Non-finite coordinates of used vertices and bad
+    indices are not repaired.
     """
     if mesh.n_faces == 0:
         raise MeshError("mesh is empty (no faces)")
-    if not np.isfinite(mesh.vertices).all():
-        raise MeshError("cannot repair NaN or infinite coordinates")
     if mesh.faces.min() < 0 or mesh.faces.max() >= mesh.n_vertices:
         raise MeshError("cannot repair faces that index missing vertices")
-    _, first, inverse = np.unique(mesh.vertices, axis=0, return_index=True, return_inverse=True)
-    rank = np.empty_like(first)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(first))  # merged vertices keep the input's order
-    faces = rank[inverse.reshape(-1)][mesh.faces]
-    vertices = mesh.vertices[np.sort(first)]
+    used, faces = np.unique(mesh.faces, return_inverse=True)  # sorted: the vertex order stays
+    if not np.isfinite(mesh.vertices[used]).all():
+        raise MeshError("cannot repair NaN or infinite coordinates")
+    vertices, faces = _merge_identical_vertices(mesh.vertices[used], faces.reshape(-1, 3))
+    merged = Mesh(vertices, faces)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
-    keep &= Mesh(vertices, faces).face_areas > _area_tolerance(mesh)
+    keep &= merged.face_areas > _area_tolerance(merged)
     _, unique_first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
     not_duplicate = np.zeros(len(faces), dtype=bool)
     not_duplicate[unique_first] = True
@@ -358,21 +374,31 @@ def labels_for_input_faces(labels, face_map, input_mesh: Mesh, voters: int = 3) 
 
 
 def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
-    """Read a triangle mesh from .off, .obj or .ply, keeping vertex and face order.
+    """Read a triangle mesh in any of :data:`SUPPORTED_SUFFIXES`, keeping face order.
+
+    OFF, OBJ and PLY keep their vertex order too. STL stores three vertices
+    per triangle and glTF/GLB repeats a vertex at every normal or UV seam,
+    so there vertices with identical coordinates are merged (in order of
+    first appearance): otherwise no two triangles would share an edge. A
+    glTF/GLB scene of several meshes is read as one mesh: every instance
+    moved by its node's transform, concatenated in scene order, then merged
+    as above, so parts that meet at identical vertices are joined; points and
+    lines are left out, and a scene without triangles is a MeshError.
 
     With ``validate`` (the default) the mesh is checked and a MeshError says
     what is wrong; pass ``validate=False`` and call :func:`repair` to fix
     duplicate vertices and degenerate or duplicate faces.
     """
     path = Path(path)
+    suffix = path.suffix.lower()
     if not path.is_file():
         raise MeshError(f"{path}: no such file")
-    if path.suffix.lower() not in SUPPORTED_SUFFIXES:
+    if suffix not in SUPPORTED_SUFFIXES:
         raise MeshError(f"{path}: unsupported format {path.suffix!r} (expected one of {', '.join(SUPPORTED_SUFFIXES)})")
     _check_declared_counts(path)
     import trimesh
 
-    try:
+    try:  # a scene comes back as its meshes, transformed and concatenated
         loaded = trimesh.load(path, process=False, maintain_order=True, force="mesh")
     except Exception as exc:  # trimesh raises many types on bad files
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from exc
@@ -381,6 +407,11 @@ def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
         vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64).reshape(-1, 3)
     except ValueError as exc:
         raise MeshError(f"{path}: cannot read mesh (a vertex or face without 3 entries: {exc})") from None
+    if suffix in _SCENE_SUFFIXES and len(faces) == 0:
+        raise MeshError(f"{path}: the scene holds no triangle mesh")
+    in_range = len(faces) == 0 or (faces.min() >= 0 and faces.max() < len(vertices))
+    if suffix in _PER_CORNER_SUFFIXES and in_range:  # bad indices are left for validate to report
+        vertices, faces = _merge_identical_vertices(vertices, faces)
     mesh = Mesh(vertices, faces)
     if validate:
         try:
@@ -429,10 +460,17 @@ def _check_declared_counts(path: Path) -> None:
 
 
 def save_mesh(path: str | os.PathLike, mesh: Mesh, face_colors: np.ndarray | None = None) -> None:
-    """Write a mesh (.ply, .obj or .off); ``face_colors`` (F, 3 or 4) uint8 are kept in PLY."""
+    """Write a mesh in any of :data:`WRITABLE_SUFFIXES`; ``face_colors`` (F, 3 or 4) uint8 are kept in PLY.
+
+    Only formats that keep vertex and face order are written, so that a
+    per-face label file stays aligned with what was saved.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in WRITABLE_SUFFIXES:
+        raise MeshError(f"{path}: cannot write {path.suffix!r} (meshes are written as one of {', '.join(WRITABLE_SUFFIXES)})")
     import trimesh
 
     out = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
     if face_colors is not None:
         out.visual.face_colors = np.asarray(face_colors, dtype=np.uint8)
-    out.export(Path(path))
+    out.export(path)

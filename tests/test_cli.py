@@ -25,6 +25,36 @@ def test_help_everywhere(command, capsys):
     assert "usage: anseg" in capsys.readouterr().out
 
 
+ALL_FORMATS = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf")
+
+
+@pytest.mark.parametrize("command", ["segment", "features"])
+def test_help_names_every_mesh_format(command, capsys):
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())  # argparse wraps long lines
+    assert all(suffix in help_text for suffix in ALL_FORMATS)
+
+
+def test_an_unsupported_format_is_one_line_naming_every_format(tmp_path):
+    path = tmp_path / "mesh.3ds"
+    path.write_text("not read\n")
+    result = run_cli("features", path, "-o", tmp_path / "x.npy")
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
+    assert all(suffix in result.stderr for suffix in ALL_FORMATS)
+
+
+def test_features_of_an_stl_file(tmp_path):
+    import trimesh
+
+    sphere = grid_mesh(4, closed=True)
+    path = tmp_path / "sphere.stl"
+    trimesh.Trimesh(sphere.vertices, sphere.faces, process=False).export(path)
+    out = tmp_path / "f.npy"
+    assert main(["features", str(path), "-o", str(out), "--groups", "edge"]) == 0
+    assert np.load(out).shape[0] == sphere.n_faces
+
+
 def test_features_writes_npy(tmp_path, capsys):
     mesh_path = tmp_path / "sphere.ply"
     sphere = grid_mesh(4, closed=True)

@@ -85,7 +85,7 @@ def test_load_errors(tmp_path):
     with pytest.raises(MeshError):
         load_mesh(bad)
     with pytest.raises(MeshError, match="unsupported format"):
-        load_mesh(write_off(tmp_path / "m.stl", TETRA_V, TETRA_F))
+        load_mesh(write_off(tmp_path / "m.3ds", TETRA_V, TETRA_F))
     ragged = tmp_path / "ragged.obj"  # a vertex line short of a coordinate (found by the reader fuzz test)
     ragged.write_text("v 0 0 0\nv 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n")
     with pytest.raises(MeshError, match="without 3 entries"):
@@ -94,6 +94,102 @@ def test_load_errors(tmp_path):
     superscript.write_bytes(b"OFF\n4 2\xb2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 2 3\n")
     with pytest.raises(MeshError):
         load_mesh(superscript)
+
+
+ALL_FORMATS = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf")
+
+
+def test_an_unsupported_format_is_named_with_every_supported_one(tmp_path):
+    with pytest.raises(MeshError, match="unsupported format '.3ds'") as error:
+        load_mesh(write_off(tmp_path / "m.3ds", TETRA_V, TETRA_F))
+    assert all(suffix in str(error.value) for suffix in ALL_FORMATS)
+    with pytest.raises(MeshError, match=r"cannot write '\.stl'.*\.off, \.obj, \.ply"):
+        save_mesh(tmp_path / "m.stl", Mesh(TETRA_V, TETRA_F))
+
+
+def face_components(mesh: Mesh) -> int:
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    pairs = mesh.face_adjacency
+    return connected_components(coo_matrix((np.ones(len(pairs)), tuple(pairs.T)), shape=(mesh.n_faces,) * 2), directed=False)[0]
+
+
+@pytest.mark.parametrize("file_type", ["stl", "stl_ascii"])
+def test_stl_reads_as_the_same_connected_mesh(tmp_path, file_type):
+    import trimesh
+
+    m = grid_mesh(4, closed=True)
+    path = tmp_path / "sphere.stl"
+    trimesh.Trimesh(m.vertices, m.faces, process=False).export(path, file_type=file_type)
+    back = load_mesh(path)
+    # the same faces in the same order, vertices renumbered one to one (STL keeps corners, not vertex numbers)
+    assert back.n_faces == m.n_faces and back.n_vertices == m.n_vertices
+    renumber = np.full(m.n_vertices, -1)
+    renumber[m.faces.ravel()] = back.faces.ravel()
+    assert np.array_equal(renumber[m.faces], back.faces)
+    assert np.allclose(back.vertices[renumber], m.vertices, atol=1e-6)
+    assert face_components(back) == 1 and back.boundary_loop_count == 0
+
+
+def test_a_glb_scene_is_one_mesh_with_the_node_transforms_applied(tmp_path):
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    box, tetra = trimesh.creation.box(), trimesh.Trimesh(TETRA_V, TETRA_F, process=False)
+    turn = trimesh.transformations.rotation_matrix(np.pi / 3, [0, 0, 1])
+    move = trimesh.transformations.translation_matrix([5.0, -2.0, 1.0]) @ turn
+    scene = trimesh.Scene()
+    scene.add_geometry(box, node_name="box", transform=move)
+    scene.add_geometry(tetra, node_name="tetra", transform=trimesh.transformations.translation_matrix([-3.0, 0, 0]))
+    path = tmp_path / "two.glb"
+    scene.export(path)
+    back = load_mesh(path)
+    expected = np.concatenate([trimesh.transform_points(box.vertices, move)[box.faces], (TETRA_V - [3.0, 0, 0])[TETRA_F]])
+    assert back.n_faces == len(expected) and back.n_vertices == len(box.vertices) + len(TETRA_V)
+    got = back.vertices[back.faces]
+    gap, match = cKDTree(got.mean(axis=1)).query(expected.mean(axis=1))  # the scene's order of meshes is trimesh's
+    assert np.sort(match).tolist() == list(range(len(expected)))
+    assert np.allclose(got[match], expected, atol=1e-5)
+    assert face_components(back) == 2
+
+
+def test_a_scene_without_triangles_is_one_clear_error(tmp_path):
+    path = tmp_path / "empty.gltf"
+    path.write_text('{"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}')
+    with pytest.raises(MeshError, match="no triangle mesh"):
+        load_mesh(path, validate=False)
+
+
+STRAY = [1e9, 1e9, 1e9]
+
+
+@pytest.mark.parametrize("extra_face, message", [(None, None), ("degenerate", "zero-area"), ("repeated", "repeat")])
+def test_an_unreferenced_far_vertex_changes_no_check(extra_face, message):
+    # CAD exports leave vertices that no face uses; far away, they once made every face "zero-area"
+    base = grid_mesh(4, closed=True)
+    extra = {None: np.zeros((0, 3), int), "degenerate": [[0, 1, 1]], "repeated": base.faces[:1]}[extra_face]
+    faces = np.vstack([base.faces, extra])
+    with_stray = Mesh(np.vstack([STRAY, base.vertices]), faces + 1)
+    if message is None:
+        Mesh(base.vertices, faces).validate()
+        with_stray.validate()
+        return
+    for mesh in (Mesh(base.vertices, faces), with_stray):
+        with pytest.raises(MeshError, match=message):
+            mesh.validate()
+
+
+def test_repair_drops_an_unreferenced_far_vertex_and_keeps_every_face():
+    base = grid_mesh(4, closed=True)
+    fixed, face_map = repair(Mesh(np.vstack([STRAY, base.vertices]), base.faces + 1))
+    assert face_map.tolist() == list(range(base.n_faces))
+    assert np.array_equal(fixed.faces, base.faces) and np.array_equal(fixed.vertices, base.vertices)
+    # a tiny real triangle still counts against the used vertices' scale, not the stray one's
+    v = np.vstack([STRAY, base.vertices, [[0, 0, 2], [1e-4, 0, 2], [0, 1e-4, 2]]])
+    n = len(v)
+    fixed, face_map = repair(Mesh(v, np.vstack([base.faces + 1, [n - 3, n - 2, n - 1]])))
+    assert len(face_map) == base.n_faces + 1
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""Fuzzing the mesh readers: damaged OFF, OBJ and PLY files give a MeshError or a valid mesh, nothing else."""
+"""Fuzzing the mesh readers: damaged OFF, OBJ, PLY, STL and GLB files give a MeshError or a valid mesh, nothing else."""
 
 from __future__ import annotations
 
@@ -10,18 +10,24 @@ from hypothesis import strategies as st
 from anseg.mesh import Mesh, MeshError, load_mesh, save_mesh
 from conftest import grid_mesh
 
-FORMATS = (".off", ".obj", ".ply")
+# file name -> trimesh's exporter, or None for save_mesh
+FORMATS = {"mesh.off": None, "mesh.obj": None, "mesh.ply": None, "binary.stl": "stl", "ascii.stl": "stl_ascii", "mesh.glb": "glb"}
 
 
 @pytest.fixture(scope="module")
 def originals(tmp_path_factory):
+    import trimesh
+
     folder = tmp_path_factory.mktemp("originals")
     mesh = grid_mesh(3, closed=True)
     out = {}
-    for suffix in FORMATS:
-        path = folder / f"mesh{suffix}"
-        save_mesh(path, mesh)
-        out[suffix] = path.read_bytes()
+    for name, file_type in FORMATS.items():
+        path = folder / name
+        if file_type is None:
+            save_mesh(path, mesh)
+        else:
+            trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(path, file_type=file_type)
+        out[name] = path.read_bytes()
     return out
 
 
@@ -46,11 +52,11 @@ def mutate(data: bytes, mutation) -> bytes:
     return data[:cut] + chunk + data[cut:]
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(suffix=st.sampled_from(FORMATS), mutation=mutations)
-def test_damaged_files_give_a_mesh_error_or_a_valid_mesh(tmp_path, originals, suffix, mutation):
-    path = tmp_path / f"damaged{suffix}"
-    path.write_bytes(mutate(originals[suffix], mutation))
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(name=st.sampled_from(list(FORMATS)), mutation=mutations)
+def test_damaged_files_give_a_mesh_error_or_a_valid_mesh(tmp_path, originals, name, mutation):
+    path = tmp_path / f"damaged-{name}"
+    path.write_bytes(mutate(originals[name], mutation))
     try:
         mesh = load_mesh(path)
     except MeshError:
