@@ -1,4 +1,4 @@
-"""README's headline tables, written from the real run's result files (nothing typed by hand)."""
+"""README's headline tables and claims ledger, written from the real run's result files (nothing typed by hand)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ from anseg.experiments import TABLE_IV_ROWS
 
 HEADLINE_START = "<!-- headline: written by `python -m anseg.reproduce --data real` from results/*.csv; do not edit -->"
 HEADLINE_END = "<!-- /headline -->"
+LEDGER_START = "<!-- ledger: written by `python -m anseg.reproduce --data real` from results/*.csv; do not edit -->"
+LEDGER_END = "<!-- /ledger -->"
 
 
 def _markdown_row(label, values) -> str:
@@ -69,7 +71,12 @@ def headline(results_dir: Path) -> str:
 
 
 def update_readme(readme: Path, results_dir: Path) -> None:
-    """Replace the block between the headline markers of ``readme`` with :func:`headline`."""
+    """Replace the blocks between the headline and the ledger markers of ``readme`` with :func:`headline` and the ledger."""
+    from anseg import ledger
+
     text = readme.read_text()
-    start, end = text.index(HEADLINE_START) + len(HEADLINE_START), text.index(HEADLINE_END)
-    readme.write_text(text[:start] + "\n" + headline(results_dir) + "\n" + text[end:])
+    for first, last, block in ((HEADLINE_START, HEADLINE_END, headline(results_dir)),
+                               (LEDGER_START, LEDGER_END, ledger.markdown(ledger.ledger(results_dir)))):
+        start, end = text.index(first) + len(first), text.index(last)
+        text = text[:start] + "\n" + block + "\n" + text[end:]
+    readme.write_text(text)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 from anseg.experiments import (
@@ -29,6 +30,7 @@ from anseg.experiments import (
     planned_experiment,
     resolve_categories,
     run_experiment,
+    trained_on,
 )
 from anseg.pipeline import SegmentConfig, Segmenter
 
@@ -62,12 +64,15 @@ class NotebookRun:
         self.synthetic, self.smoke = p["dataset"] == "synthetic", p["smoke"]
         self.shape_options, self.segment_options, self.train = notebook_settings(p)
         self.planned = notebook_runs(f"{name}.ipynb", p)
+        self.read: dict[str, dict] = {}  # the stored results this notebook read, by key
         self.record = self._record(parameters)
 
     def result(self, run: PlannedRun) -> dict:
         """The stored result of a planned run, or a fresh one trained and evaluated here (and stored)."""
         experiment, options = planned_experiment(run, self.parameters)
-        return run_experiment(experiment, out_dir=self.out, progress=False, **options)
+        result = run_experiment(experiment, out_dir=self.out, progress=False, **options)
+        self.read[result["key"]] = result
+        return result
 
     def results(self) -> list[tuple[PlannedRun, dict]]:
         """Every planned run with its result, in the plan's order."""
@@ -102,10 +107,27 @@ class NotebookRun:
     def finish(self) -> Path:
         """Write the run record with its wall time to ``results/<notebook>.json``; returns its path."""
         self.record["wall_seconds"] = round(time.time() - self.started, 1)
+        self.record["runs_read"] = runs_read = self._runs_read()
         path = self.results_dir / f"{self.name}.json"
         path.write_text(json.dumps(self.record, indent=1, default=str))
         print(f"{self.name}: {self.record['wall_seconds']:.0f} s wall time; record written to {path}")
+        if runs_read["runs"]:
+            print(f"the {runs_read['runs']} runs it read: trained on {runs_read['machines']}, "
+                  f"code {runs_read['code_revisions']}, {runs_read['train_hours']:.2f} h of training in all")
         return path
+
+    def _runs_read(self) -> dict:
+        """How many runs the notebook read, the machines and code revisions that trained them, and their training time."""
+        from collections import Counter
+
+        results = list(self.read.values())
+        revisions = Counter(
+            (r["environment"].get("code_revision") or "not recorded")[:12]
+            + ("" if r["environment"].get("code_clean") in (True, None) else " (with uncommitted changes)")
+            for r in results)
+        return {"runs": len(results), "machines": dict(Counter(trained_on(r) for r in results)),
+                "code_revisions": dict(revisions),
+                "train_hours": round(sum(r.get("train_seconds", 0.0) for r in results) / 3600, 3)}
 
     def _record(self, parameters: dict) -> dict:
         import matplotlib
@@ -118,7 +140,9 @@ class NotebookRun:
             "parameters": parameters,
             "data": [self._data_record(name) for name in sorted({run.dataset for run in self.planned})],
             "seeds": {"training": self.train.seed, "clustering_and_collapse": SegmentConfig().seed},
-            "settings": {"segment_overrides": self.segment_options, "train": vars(self.train),
+            "configuration": parameters["config"],
+            "settings": {"segment": asdict(SegmentConfig(**self.segment_options)),
+                         "segment_overrides": self.segment_options, "train": asdict(self.train),
                          "synthetic_shapes": self.shape_options},
             "versions": {"anseg": anseg.__version__, "pandas": pandas.__version__, "matplotlib": matplotlib.__version__},
             "environment": environment(),

@@ -13,7 +13,7 @@ import nbformat
 import pytest
 
 from anseg.experiments import COMMON, PER_NOTEBOOK, REPO, planned_experiments
-from anseg.headline import HEADLINE_END, HEADLINE_START, headline
+from anseg.headline import HEADLINE_END, HEADLINE_START, LEDGER_END, LEDGER_START, headline
 from anseg.reproduce import NOTEBOOKS
 
 SMOKE_TIMEOUT_S = 1800  # about 4 minutes on a 2-core CPU; the margin is for a loaded machine
@@ -40,7 +40,8 @@ def test_notebook_takes_exactly_the_parameters_reproduce_passes(name):
 def _expected_files(out: Path) -> list[Path]:
     smoke = {name: {**COMMON["smoke"], **PER_NOTEBOOK[name]["smoke"]} for name in PER_NOTEBOOK}
     results = ["table1_psb.csv", "table1_psb_runs.csv", "table2_coseg.csv", "table3_human.csv", "table4_ablation.csv",
-               "table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv", "fig4_attention.csv"]
+               "table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv", "fig4_attention.csv",
+               "claims_ledger.csv"]
     results += [name.replace(".ipynb", ".json") for name in PER_NOTEBOOK]
     figures = ["table3_human.png", "table4_ablation.png", "fig12_features.png", "fig12_renders.png", "fig4_attention.png",
                "fig5_8_predictions.png", "fig10_modes.png", "explore_levels.png", "explore_labels.png",
@@ -108,6 +109,14 @@ def test_readme_headline_is_the_committed_results():
     text = (REPO / "README.md").read_text()
     block = text[text.index(HEADLINE_START) + len(HEADLINE_START):text.index(HEADLINE_END)]
     assert block.strip() == headline(REPO / "results").strip()
+
+
+def test_readme_ledger_is_the_committed_results():
+    from anseg import ledger
+
+    text = (REPO / "README.md").read_text()
+    block = text[text.index(LEDGER_START) + len(LEDGER_START) : text.index(LEDGER_END)]
+    assert block.strip() == ledger.markdown(ledger.ledger(REPO / "results")).strip()
 
 
 def test_headline_adds_the_mean_over_splits_when_there_are_several(tmp_path):

@@ -1,0 +1,56 @@
+"""The claims ledger: a verdict for every claim, read from the result files, and verdicts that follow the numbers."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from anseg import ledger
+
+RESULTS = Path(__file__).resolve().parent.parent / "results"
+
+
+@pytest.fixture
+def results(tmp_path) -> Path:
+    """A copy of the committed results that a test may change."""
+    if not (RESULTS / "table1_psb.csv").is_file():
+        pytest.skip("no committed results in this checkout")
+    shutil.copytree(RESULTS, tmp_path / "results", ignore=shutil.ignore_patterns("runs"))
+    return tmp_path / "results"
+
+
+def test_every_claim_gets_one_of_three_verdicts_from_the_committed_results(results):
+    table = ledger.ledger(results)
+    assert list(table.claim) == [claim.name for claim in ledger.CLAIMS]
+    assert set(table.verdict) <= {ledger.HOLDS, ledger.FAILS, ledger.UNTESTED}
+    assert table.loc[table.claim == "PSB accuracy", "our evidence"].item().startswith("ours ")
+    markdown = ledger.markdown(table)
+    assert markdown.count("\n") == len(table) + 1
+
+
+def test_verdicts_follow_the_numbers(results):
+    attention = pd.read_csv(results / "fig4_attention.csv")
+    verdict = lambda name: ledger.ledger(results).set_index("claim").loc[name, "verdict"]
+    attention["mean attention elsewhere"] = attention["mean attention near boundaries"] * 2
+    attention.to_csv(results / "fig4_attention.csv", index=False)
+    assert verdict("Attention at junctions") == ledger.FAILS
+    attention["mean attention elsewhere"] = attention["mean attention near boundaries"] / 2
+    attention.to_csv(results / "fig4_attention.csv", index=False)
+    assert verdict("Attention at junctions") == ledger.HOLDS
+
+    table1 = pd.read_csv(results / "table1_psb.csv", index_col=0)
+    over = next(c for c in table1.columns if c.startswith("ours, unit area, mean of"))
+    table1.loc["mean", over] = 95.29 - table1.loc["mean", "ours, std over splits"] / 2  # short by less than the spread
+    table1.to_csv(results / "table1_psb.csv")
+    assert verdict("PSB accuracy") == ledger.HOLDS
+
+
+def test_a_missing_result_or_synthetic_data_cannot_decide(results):
+    (results / "fig12_features.csv").unlink()
+    table = ledger.ledger(results).set_index("claim")
+    assert table.loc["All four feature groups", "verdict"] == ledger.UNTESTED
+    assert "fig12_features.csv is not written yet" in table.loc["All four feature groups", "our evidence"]
+    assert set(ledger.ledger(results, benchmark=False).verdict) == {ledger.UNTESTED}
