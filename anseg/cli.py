@@ -70,8 +70,10 @@ def _parser() -> argparse.ArgumentParser:
 
     segment = commands.add_parser("segment", help="segment a mesh file with a trained model",
                                   description="Write a face-coloured PLY and a per-face label file (one 0-based label per line).")
-    segment.add_argument("model", type=Path, help="model file written by `anseg train`")
-    segment.add_argument("mesh", type=Path, help=mesh_help)
+    segment.add_argument("paths", nargs="+", type=Path, metavar="[MODEL] MESH",
+                         help=f"a model file written by `anseg train` (or --model), then the {mesh_help}")
+    segment.add_argument("-m", "--model", dest="model_name", metavar="NAME_OR_FILE",
+                         help="a pretrained model listed by `anseg models` (e.g. psb/Human), or a model file")
     segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
     segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
     segment.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
@@ -93,6 +95,8 @@ def _parser() -> argparse.ArgumentParser:
     feats.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
     feats.add_argument("--repair", action="store_true", help="repair the mesh first, as `segment --repair` does; rows follow the repaired faces")
 
+    commands.add_parser("models", help="list the pretrained models shipped with anseg",
+                        description="The pretrained models `anseg segment --model NAME` takes, with their model cards' summary.")
     commands.add_parser("validate", help="compare settings by cross-validation on training meshes", add_help=False,
                         description="anseg.validate; `anseg validate --help` lists its options.")
     return parser
@@ -142,7 +146,17 @@ def _segment(args) -> None:
     from anseg.pipeline import segment
     from anseg.viz import label_colors
 
-    model = _load_model(args.model)
+    if args.model_name is not None:
+        if len(args.paths) != 1:
+            raise ValueError("with --model, give only the mesh file")
+        from anseg.pretrained import resolve
+        from anseg.train import resolve_device
+
+        model, args.mesh = resolve(args.model_name, device=resolve_device("auto")), args.paths[0]
+    else:
+        if len(args.paths) != 2:
+            raise ValueError("give a model file and a mesh file, or --model NAME and a mesh file (`anseg models` lists the names)")
+        model, args.mesh = _load_model(args.paths[0]), args.paths[1]
     mesh = input_mesh = load_mesh(args.mesh, validate=not args.repair)
     face_map = None
     if args.repair:
@@ -191,6 +205,15 @@ def _features(args) -> None:
     print(f"{x.shape[0]} faces x {x.shape[1]} features -> {args.output}")
 
 
+def _models(args) -> None:
+    from anseg import pretrained
+
+    if not pretrained.names():
+        print("no pretrained models are shipped with this installation; `anseg train` makes one")
+    for name in pretrained.names():
+        print(pretrained.describe(name))
+
+
 def main(argv: list[str] | None = None) -> int:
     from anseg.datasets import DatasetError
     from anseg.mesh import MeshError
@@ -201,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
 
         return validate(argv[1:])
     args = _parser().parse_args(argv)
-    handlers = {"train": _train, "segment": _segment, "evaluate": _evaluate, "features": _features}
+    handlers = {"train": _train, "segment": _segment, "evaluate": _evaluate, "features": _features, "models": _models}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)

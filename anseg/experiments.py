@@ -85,7 +85,9 @@ class Experiment:
 
 
 def environment() -> dict:
-    """Versions, hardware and the code revision, recorded beside every result."""
+    """Versions, hardware, the code revision and the date (UTC), recorded beside every result."""
+    from datetime import datetime, timezone
+
     import sklearn
     import trimesh
 
@@ -94,7 +96,7 @@ def environment() -> dict:
         "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
         "cpus": os.cpu_count(), "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-        **code_revision(),
+        **code_revision(), "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
 
 

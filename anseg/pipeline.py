@@ -159,13 +159,21 @@ class Segmenter:
         data = self.to_bytes()
         atomic_write(path, lambda tmp: tmp.write_bytes(data))
 
-    def to_bytes(self) -> bytes:
-        """The model file's content (what :meth:`save` writes), e.g. to send from a worker process."""
+    def to_bytes(self, half: bool = False) -> bytes:
+        """The model file's content (what :meth:`save` writes), e.g. to send from a worker process.
+
+        ``half`` stores the weights in float16 (half the bytes; they are read
+        back as float32), for the pretrained models shipped with the package.
+        The file records the feature code the model was trained on, so that
+        it is never applied to other features.
+        """
         import io
 
+        state = self.network.state_dict()
         payload = {
             "network_config": asdict(self.network.config),
-            "state_dict": self.network.state_dict(),
+            "state_dict": {k: v.half() if half and v.is_floating_point() else v for k, v in state.items()},
+            "feature_code": feature_code(),
             "segment_config": asdict(self.config),
             "feature_mean": torch.as_tensor(self.feature_mean),
             "feature_std": torch.as_tensor(self.feature_std),
@@ -176,15 +184,27 @@ class Segmenter:
         return buffer.getvalue()
 
     @classmethod
+    def pretrained(cls, name: str, device="cpu") -> "Segmenter":
+        """A model shipped with the package, by its name in ``anseg models`` (:mod:`anseg.pretrained`)."""
+        from anseg import pretrained
+
+        return pretrained.load(name, device)
+
+    @classmethod
     def load(cls, path: str | os.PathLike, device="cpu") -> "Segmenter":
         """Read a model written by :meth:`save`."""
         try:
             payload = torch.load(path, map_location=device, weights_only=True)
             network = AttentionSegmenter(ModelConfig(**payload["network_config"]))
-            network.load_state_dict(payload["state_dict"])
+            reference = network.state_dict()
+            network.load_state_dict({k: v.to(reference[k].dtype) for k, v in payload["state_dict"].items()})
         except (OSError, KeyError, TypeError, RuntimeError, pickle.UnpicklingError) as exc:
             # in our words: torch's own message advises an unsafe load
             raise ValueError(f"{path}: not a model written by anseg, or a damaged one ({type(exc).__name__})") from exc
+        trained_on = payload.get("feature_code")  # absent in files written before it was recorded
+        if trained_on is not None and trained_on != feature_code():
+            raise ValueError(f"{path}: trained on other features ({_differences(trained_on, feature_code())}) "
+                             "than this anseg computes; retrain it, or use the anseg version it was made with")
         return cls(
             network=network.to(device).eval(),
             config=SegmentConfig(**payload["segment_config"]),
@@ -192,6 +212,17 @@ class Segmenter:
             feature_std=payload["feature_std"].numpy(),
             label_names=list(payload["label_names"]),
         )
+
+
+def feature_code() -> dict:
+    """What decides the features a model reads: the feature code's version and settings, and the eigenbasis's version."""
+    return {"features": features.FEATURES_VERSION, **asdict(features.FeatureSettings()),
+            "spectrum": spectral.SPECTRUM_VERSION}
+
+
+def _differences(theirs: dict, ours: dict) -> str:
+    keys = sorted(set(theirs) | set(ours))
+    return ", ".join(f"{k} {theirs.get(k)!r} here {ours.get(k)!r}" for k in keys if theirs.get(k) != ours.get(k))
 
 
 @dataclass

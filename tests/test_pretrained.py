@@ -1,0 +1,91 @@
+"""Pretrained models: the index and its cards, names checked against it, float16 storage, features that must match."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+import torch
+
+from anseg import datasets, pipeline, pretrained
+from anseg.cli import main
+from anseg.mesh import save_mesh
+from anseg.pipeline import SegmentConfig, Segmenter, segment
+from anseg.train import TrainConfig, fit
+
+
+@pytest.fixture(scope="module")
+def trained():
+    torch.set_num_threads(1)
+    shapes = datasets.load("synthetic", category="figure", split="all", n_shapes=6, progress=False)
+    model = fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=2, clusters=4), TrainConfig(epochs=2, width=16),
+                progress=False)
+    result = {"dataset": "synthetic", "category": "figure", "split_index": 0, "n_train": 3, "segment": {}, "train": {},
+              "accuracy": {"unit_area": 0.5}, "environment": {"code_revision": "abc", "cpus": 2, "cuda": None,
+                                                              "date": "2026-12-02T00:00:00+00:00"}}
+    return model, result, shapes[3:5]
+
+
+@pytest.fixture
+def shipped(tmp_path, monkeypatch, trained):
+    monkeypatch.setattr(pretrained, "MODELS", tmp_path / "pretrained")
+    monkeypatch.setattr(pretrained, "INDEX", tmp_path / "pretrained" / "index.json")
+    model, result, test_set = trained
+    entry = pretrained.publish(model, "synthetic/figure", result, test_set, "default", out=tmp_path / "pretrained")
+    return model, entry, test_set
+
+
+def test_a_published_model_segments_as_the_trained_one(shipped):
+    model, entry, test_set = shipped
+    assert pretrained.names() == ["synthetic/figure"]
+    assert entry["precision"].startswith(("float16", "float32")) and entry["code_revision"] == "abc"
+    loaded = Segmenter.pretrained("synthetic/figure")
+    assert all(v.dtype == torch.float32 for v in loaded.network.state_dict().values() if v.is_floating_point())
+    if entry["precision"].startswith("float16"):  # the promise the card makes
+        for item in test_set:
+            assert np.array_equal(segment(item.mesh, loaded).labels, segment(item.mesh, model).labels)
+    assert "synthetic figure" in pretrained.describe("synthetic/figure")
+
+
+@pytest.mark.parametrize("name", ["../index", "synthetic/../../x", "/etc/passwd", "psb/Nope"])
+def test_a_name_not_in_the_index_never_reaches_the_file_system(shipped, name):
+    with pytest.raises(ValueError, match="anseg models"):
+        pretrained.load(name)
+    with pytest.raises(ValueError, match="neither a model file nor a pretrained model"):
+        pretrained.resolve(name + ".missing")
+
+
+def test_publish_refuses_names_that_are_not_plain(trained, tmp_path):
+    model, result, test_set = trained
+    with pytest.raises(ValueError, match="model names"):
+        pretrained.publish(model, "../evil", result, test_set[:1], "default", out=tmp_path)
+
+
+def test_a_model_trained_on_other_features_is_refused(trained, tmp_path, monkeypatch):
+    model, _, _ = trained
+    path = tmp_path / "m.pt"
+    model.save(path)
+    current = pipeline.feature_code()
+    monkeypatch.setattr(pipeline, "feature_code", lambda: {**current, "features": current["features"] + 1})
+    with pytest.raises(ValueError, match="trained on other features"):
+        Segmenter.load(path)
+
+
+def test_half_precision_files_are_half_the_size(trained):
+    model, _, _ = trained
+    assert len(model.to_bytes(half=True)) < 0.75 * len(model.to_bytes())
+    Segmenter.load(io.BytesIO(model.to_bytes(half=True)))
+
+
+def test_cli_lists_and_segments_with_a_pretrained_model(shipped, tmp_path, capsys):
+    _, _, test_set = shipped
+    assert main(["models"]) == 0
+    assert "synthetic/figure" in capsys.readouterr().out
+    mesh_path = tmp_path / "mine.off"
+    save_mesh(mesh_path, test_set[0].mesh)
+    assert main(["segment", "--model", "synthetic/figure", str(mesh_path), "-o", str(tmp_path / "out.ply"), "-q"]) == 0
+    assert len(np.loadtxt(tmp_path / "out.txt")) == test_set[0].mesh.n_faces
+    assert main(["segment", "--model", "psb/Nope", str(mesh_path)]) == 2
+    assert "anseg models" in capsys.readouterr().err
+    assert main(["segment", str(mesh_path)]) == 2  # neither a model file nor --model
