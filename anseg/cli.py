@@ -76,6 +76,9 @@ def _parser() -> argparse.ArgumentParser:
                          help="a pretrained model listed by `anseg models` (e.g. psb/Human), or a model file")
     segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
     segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
+    segment.add_argument("--html", type=Path, metavar="FILE",
+                         help="also write a standalone HTML view (opens in any browser, no server): the labels, "
+                              "every level with its attention, the confidence and a legend")
     segment.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
     segment.add_argument("--smooth-weight", type=_non_negative, default=None, help="graph-cut weight (default: the model's; 0 turns smoothing off)")
     segment.add_argument("--repair", action="store_true",
@@ -175,8 +178,12 @@ def _segment(args) -> None:
     # each file is complete or absent, even when interrupted
     atomic_write(output, lambda tmp: save_mesh(tmp, mesh, face_colors=label_colors(result.labels, model.n_classes)))
     atomic_write(label_path, lambda tmp: np.savetxt(tmp, labels, fmt="%d"))
+    if args.html:
+        from anseg.viewer import write_html
+
+        write_html(result, model.label_names, args.html, title=args.mesh.name)
     counts = np.bincount(result.labels, minlength=model.n_classes)
-    print(f"{mesh.n_faces} faces -> {output} and {label_path}")
+    print(f"{mesh.n_faces} faces -> {output} and {label_path}" + (f" (view: {args.html})" if args.html else ""))
     for name, count in zip(model.label_names, counts):
         print(f"  {name}: {count} faces")
 

@@ -1,0 +1,103 @@
+"""A segmentation as one self-contained HTML file that turns in any browser, with no server and no network.
+
+The page holds every level of the hierarchy side by side: the top row the
+labels on the input mesh and on each coarser level, then the confidence
+(the winning class's probability); the bottom row each level's attention.
+The 3D view is pyvista's HTML export (vtk.js, embedded in the file); that
+export drops text and legends, so the legend and the key to the rows are
+written into the page itself.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from anseg import collapse
+from anseg.cache import atomic_write
+from anseg.mesh import Mesh
+from anseg.viz import _pyvista, palette, polydata
+
+_GAP = 1.5  # between panels, in units of a panel's size (each mesh scaled to unit bounding-box diagonal)
+
+
+def panels(result, n_classes: int) -> list[tuple[int, int, Mesh, np.ndarray]]:
+    """(row, column, mesh, per-face RGB uint8) of every panel of the page for a :class:`~anseg.pipeline.Segmentation`."""
+    import matplotlib
+
+    levels = result.levels
+    areas = levels[0].mesh.face_areas
+    records = [lv.record for lv in levels[:-1]]
+    colours = palette(n_classes)
+    out = []
+    for index, level in enumerate(levels):
+        labels = collapse.pool_labels(records[:index], result.labels, areas, n_classes) if index else result.labels
+        out.append((0, index, level.mesh, colours[labels]))
+        if level.attention is not None:
+            log = np.log(np.maximum(level.attention, 1e-6))
+            low, high = np.percentile(log, [1, 99])
+            # a flat attention (depth 0, or a level that collapses nothing) shows mid-scale, not black
+            scaled = np.clip((log - low) / (high - low), 0, 1) if high - low > 1e-6 else np.full(len(log), 0.5)
+            out.append((1, index, level.mesh, _rgb(matplotlib.colormaps["magma"](scaled))))
+    confidence = result.probabilities.max(axis=1)
+    out.append((0, len(levels), levels[0].mesh, _rgb(matplotlib.colormaps["viridis"](confidence))))
+    return out
+
+
+def _rgb(rgba: np.ndarray) -> np.ndarray:
+    return np.round(rgba[:, :3] * 255).astype(np.uint8)
+
+
+def write_html(result, label_names, path: str | os.PathLike, title: str = "anseg segmentation") -> Path:
+    """Write the page for ``result`` (what :func:`anseg.pipeline.segment` returns) to ``path``, atomically."""
+    pyvista = _pyvista()
+    plotter = pyvista.Plotter(off_screen=True)
+    try:
+        plotter.set_background("white")
+        for row, column, mesh, rgb in panels(result, len(label_names)):
+            surface = polydata(_unit(mesh))
+            surface.translate((column * _GAP, -row * _GAP, 0.0), inplace=True)
+            surface.cell_data["colours"] = rgb
+            plotter.add_mesh(surface, scalars="colours", rgb=True, preference="cell", smooth_shading=False)
+        plotter.view_xy()
+        scratch = Path(path).with_name(f".{Path(path).name}.export.html")
+        plotter.trame.export_html(str(scratch))
+    finally:
+        plotter.close()
+    try:
+        page = scratch.read_text()
+    finally:
+        scratch.unlink(missing_ok=True)
+    page = page.replace("<title>VTK.js | Example - OfflineLocalView</title>", f"<title>{html.escape(title)}</title>")
+    # the viewer empties <body> when it starts, so the legend is added beside it once the page has loaded
+    legend = json.dumps(_legend(label_names, result.labels, len(result.levels), title)).replace("</", "<\\/")
+    script = ("<script>window.addEventListener('load', function () { var box = document.createElement('div'); "
+              f"box.innerHTML = {legend}; document.documentElement.appendChild(box.firstChild); }});</script>")
+    head = page.index("</head>")
+    page = page[:head] + script + page[head:]
+    return atomic_write(path, lambda tmp: tmp.write_text(page))
+
+
+def _unit(mesh: Mesh) -> Mesh:
+    """The mesh centred and scaled to a bounding-box diagonal of 1, so panels of any size sit on one grid."""
+    low, high = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    size = max(float(np.linalg.norm(high - low)), 1e-12)
+    return Mesh((mesh.vertices - (low + high) / 2) / size, mesh.faces)
+
+
+def _legend(label_names, labels, n_levels: int, title: str) -> str:
+    counts = np.bincount(labels, minlength=len(label_names))
+    swatches = "".join(
+        f'<div><span style="display:inline-block;width:1em;height:1em;margin-right:.4em;vertical-align:middle;'
+        f'background:rgb({r},{g},{b})"></span>{html.escape(str(name))} ({count} faces)</div>'
+        for name, (r, g, b), count in zip(label_names, palette(len(label_names)), counts))
+    key = (f"Top row, left to right: the labels on the input mesh and on each of the {n_levels - 1} coarser levels, "
+           "then the confidence (the winning class's probability; dark is low). Bottom row: each level's attention "
+           "(log scale; bright is high). Drag to turn, scroll to zoom.")
+    return (f'<div id="anseg-legend" style="position:fixed;top:8px;left:8px;z-index:1000;background:rgba(255,255,255,.9);'
+            f'padding:8px 12px;font:13px sans-serif;max-width:24em;border-radius:4px">'
+            f"<b>{html.escape(title)}</b>{swatches}<p style=\"margin:.5em 0 0\">{key}</p></div>")
