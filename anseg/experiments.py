@@ -359,11 +359,19 @@ def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
                 for c in categories for f, g in ABLATION_SETS.items()]
     if name == "fig4_attention.ipynb":
         return [PlannedRun({"mode": m}, dataset, p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
-    if name == "explore.ipynb":
-        return [] if p.get("model_path") else [PlannedRun({}, dataset, p["category"])]
+    if name == "explore.ipynb":  # a model of the user's, or a shipped one, needs no training
+        return [] if p.get("model_path") or explore_model_name(p) else [PlannedRun({}, dataset, p["category"])]
     if name == "claims_ledger.ipynb":  # trains nothing: reads the other notebooks' results
         return []
     raise ValueError(f"no plan for notebook {name}")
+
+
+def explore_model_name(p: dict) -> str | None:
+    """The shipped model explore.ipynb uses for its data set and category (:mod:`anseg.pretrained`), or None."""
+    from anseg import pretrained
+
+    name = f"{p['dataset']}/{p['category']}" if p["dataset"] == "psb" else p["category"]
+    return name if name in pretrained.names() else None
 
 
 def planned_experiment(run: PlannedRun, p: dict) -> tuple[Experiment, dict]:

@@ -1,11 +1,14 @@
-"""A segmentation as one self-contained HTML file that turns in any browser, with no server and no network.
+"""A segmentation to look at and turn: one self-contained HTML file, or a view with a level slider in Jupyter.
 
-The page holds every level of the hierarchy side by side: the top row the
+:func:`write_html` writes a page that opens in any browser with no server and
+no network. The page holds every level of the hierarchy side by side: the top row the
 labels on the input mesh and on each coarser level, then the confidence
 (the winning class's probability); the bottom row each level's attention.
 The 3D view is pyvista's HTML export (vtk.js, embedded in the file); that
 export drops text and legends, so the legend and the key to the rows are
-written into the page itself.
+written into the page itself. :func:`explore` is the live counterpart in a
+Jupyter session: one mesh at a time, a slider for the level and a choice of
+labels, attention or confidence, through pyvista's trame backend.
 """
 
 from __future__ import annotations
@@ -46,6 +49,60 @@ def panels(result, n_classes: int) -> list[tuple[int, int, Mesh, np.ndarray]]:
     confidence = result.probabilities.max(axis=1)
     out.append((0, len(levels), levels[0].mesh, _rgb(matplotlib.colormaps["viridis"](confidence))))
     return out
+
+
+COLOURINGS = ("labels", "attention", "confidence")
+
+
+def explore(result, label_names, jupyter_backend: str = "trame"):
+    """A Jupyter widget: the mesh of one level, coloured by ``COLOURINGS``, a level slider and a legend.
+
+    The confidence exists on the input level only (the slider is then set
+    there). ``jupyter_backend`` is pyvista's (``"trame"`` turns in the
+    browser; the others are for tests and static output).
+    """
+    import ipywidgets
+
+    pyvista = _pyvista()
+    colours = {(kind, column): (mesh, rgb) for kind, column, mesh, rgb in _by_kind(result, len(label_names))}
+    plotter = pyvista.Plotter(notebook=True)
+    plotter.set_background("white")
+    slider = ipywidgets.IntSlider(value=0, min=0, max=len(result.levels) - 1, description="level")
+    choice = ipywidgets.Dropdown(options=COLOURINGS, value="labels", description="colour by")
+
+    def show(*_):
+        kind = choice.value
+        if kind == "confidence":
+            slider.value = 0
+        mesh, rgb = colours.get((kind, slider.value), colours[("labels", slider.value)])
+        surface = polydata(mesh)
+        surface.cell_data["colours"] = rgb
+        plotter.clear_actors()
+        plotter.add_mesh(surface, scalars="colours", rgb=True, preference="cell", smooth_shading=False, name="mesh")
+        plotter.render()
+        if hasattr(view, "viewer"):  # the trame widget pushes the new scene to the browser
+            view.viewer.update()
+
+    view = None
+    show()
+    view = plotter.show(jupyter_backend=jupyter_backend, return_viewer=True)
+    slider.observe(show, names="value")
+    choice.observe(show, names="value")
+    legend = ipywidgets.HTML(_legend(label_names, result.labels, len(result.levels), "labels"))
+    box = ipywidgets.VBox([ipywidgets.HBox([slider, choice]), ipywidgets.HBox([legend, view])
+                           if isinstance(view, ipywidgets.Widget) else legend])
+    box.plotter = plotter  # for callers that update or close it
+    return box
+
+
+def _by_kind(result, n_classes: int):
+    """:func:`panels` keyed by what colours them: (kind, level, mesh, rgb)."""
+    kinds = {0: "labels", 1: "attention"}
+    for row, column, mesh, rgb in panels(result, n_classes):
+        if column == len(result.levels):  # the confidence, on the input mesh
+            yield "confidence", 0, mesh, rgb
+        else:
+            yield kinds[row], column, mesh, rgb
 
 
 def _rgb(rgba: np.ndarray) -> np.ndarray:

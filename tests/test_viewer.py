@@ -57,3 +57,19 @@ def test_a_browser_draws_the_mesh_in_the_label_colours(page, tmp_path):
     lower_half = np.asarray(Image.open(shot).convert("RGB"))[250:].reshape(-1, 3).astype(int)
     hits = [int((np.abs(lower_half - colour).sum(axis=1) < 60).sum()) for colour in used]
     assert max(hits) > 200, f"no label colour drawn: {hits}"
+
+
+def test_the_live_view_follows_its_slider_and_colouring(page):
+    _, result, names = page
+    box = viewer.explore(result, names, jupyter_backend="static")
+    (slider, choice), plotter = box.children[0].children, box.plotter
+    shown = lambda: plotter.actors["mesh"].mapper.dataset
+    assert shown().n_cells == result.levels[0].mesh.n_faces
+    slider.value = len(result.levels) - 1
+    assert shown().n_cells == result.levels[-1].mesh.n_faces
+    choice.value = "confidence"  # the input level's only
+    assert slider.value == 0 and shown().n_cells == result.levels[0].mesh.n_faces
+    confidence = shown().cell_data["colours"].copy()
+    choice.value = "labels"
+    assert not np.array_equal(shown().cell_data["colours"], confidence)
+    plotter.close()
