@@ -44,8 +44,23 @@ def laplacian_eigenpairs(mesh: Mesh, n_pairs: int) -> tuple[np.ndarray, np.ndarr
     """The ``n_pairs`` smallest eigenvalues (k,) and mass-orthonormal vertex eigenvectors (V, k) of the cotan Laplacian.
 
     Fewer (k = V - 2) on a mesh too small for ``n_pairs``. The mesh must have
-    no unreferenced vertices (they make the Laplacian singular).
+    no unreferenced vertices (they make the Laplacian singular). The last
+    mesh's pairs are kept in memory: segmenting a new mesh asks twice, for
+    the HKS features and for the network's spectrum, and the solve is most
+    of the cost of either.
     """
+    key = (hashlib.sha1(mesh.vertices.tobytes() + mesh.faces.tobytes()).hexdigest(), mesh.vertices.shape, n_pairs)
+    if _LAST_SOLVE.get("key") != key:
+        _LAST_SOLVE.clear()
+        _LAST_SOLVE.update(key=key, pairs=_solve(mesh, n_pairs))
+    values, vectors = _LAST_SOLVE["pairs"]
+    return values.copy(), vectors.copy()
+
+
+_LAST_SOLVE: dict = {}
+
+
+def _solve(mesh: Mesh, n_pairs: int) -> tuple[np.ndarray, np.ndarray]:
     import igl
     from scipy.sparse.linalg import LinearOperator, eigsh
 

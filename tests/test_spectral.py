@@ -51,3 +51,18 @@ def test_a_mesh_too_small_for_the_pairs_gets_zero_columns():
     assert spectrum.basis.shape == (20, 16)
     assert np.abs(spectrum.basis[:, 10:]).max() == 0
     assert np.isfinite(spectrum.values).all()
+
+
+def test_the_hks_and_the_spectrum_of_one_mesh_share_one_solve(monkeypatch):
+    from anseg import features
+
+    calls = []
+    solve = spectral._solve
+    monkeypatch.setattr(spectral, "_solve", lambda *a: calls.append(1) or solve(*a))
+    spectral._LAST_SOLVE.clear()
+    mesh = blob(2)
+    features.compute_groups(mesh, ["hks"], sdf_rays=4, agd_sources=4)
+    spectral.face_spectrum(mesh, features.HKS_EIGENPAIRS, cache=False)
+    assert len(calls) == 1
+    spectral.face_spectrum(blob(3), 8, cache=False)
+    assert len(calls) == 2
