@@ -1,7 +1,7 @@
 """End-to-end segmentation time by stage, and peak memory, on one mesh.
 
     python benchmarks/segment.py [--mesh FILE | --near FACES] [--model MODEL.pt | --config NAME] [--subdivide N]
-                                 [--repeat 3] [--reference REV]
+                                 [--repeat 3] [--reference REV] [--set OVERRIDES] [--reference-set OVERRIDES]
 
 Without ``--mesh`` it takes the PSB test mesh closest to ``--near`` faces (25K) from
 ``$ANSEG_DATA`` (or a subdivided synthetic shape when no data is there);
@@ -10,7 +10,11 @@ twice gives 400K; ``--near 19000 --subdivide 2`` gives about 300K). Without
 ``--model`` a model of the named configuration ``--config`` (default:
 ``default``; ``v1`` is the network before validation) is trained for one
 epoch on three synthetic shapes: speed does not depend on what the weights
-learnt. Features are computed without the cache, so their cost is in the figures. Stages are timed by
+learnt; ``--set`` gives it other settings (the field=value syntax of
+``anseg.configs``), and ``--reference-set`` the reference its own (``""``:
+the defaults; with our code where there is no ``--reference``). Features,
+and the eigenbasis of a model that reads one, are computed without the
+cache, so their cost is in the figures. Stages are timed by
 wrapping the package functions that implement them; peak memory is the
 process's peak resident set (ru_maxrss) measured in a fresh child process
 per mesh, minus the resident set after imports and loading. With
@@ -30,6 +34,7 @@ import subprocess
 import sys
 import time
 from collections import defaultdict
+from functools import partial
 
 import numpy as np
 from stages import import_from, print_stages, reference_checkout, stage_timers
@@ -58,12 +63,12 @@ def pick_mesh(path: str | None, subdivide: int, near: int = 25_000):
     return mesh, name
 
 
-def quick_model(name: str):
+def quick_model(name: str, overrides: str = ""):
     from anseg import datasets
     from anseg.configs import configuration
     from anseg.train import fit
 
-    segment, train = configuration(name, "train.epochs=1")
+    segment, train = configuration(name, ",".join(filter(None, ["train.epochs=1", overrides])))
     shapes = datasets.load("synthetic", category="figure", split="train", progress=False)[:3]
     return fit(shapes, shapes[0].label_names, segment, train, progress=False)
 
@@ -79,6 +84,7 @@ def segment_stages() -> dict:
         "upsample": (pipeline.collapse, "upsample_through"),
         "graph cut": (pipeline, "graph_cut"),
         "network": (pipeline.Segmenter, "__call__"),
+        "spectrum": (pipeline.spectral, "face_spectrum"),
     }
 
 
@@ -92,7 +98,11 @@ def measure(args) -> None:
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    model = Segmenter.load(args.model) if args.model else quick_model(args.config)
+    import anseg.pipeline as pipeline
+
+    # a new mesh pays for its eigenbasis: no disk cache (the HKS features' solve is shared in memory, as in use)
+    pipeline.spectral.face_spectrum = partial(pipeline.spectral.face_spectrum, cache=False)
+    model = Segmenter.load(args.model) if args.model else quick_model(args.config, args.set)
     mesh, name = pick_mesh(args.mesh, args.subdivide, args.near)
     baseline = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     segment(mesh, model, groups=compute_groups(mesh, model.config.groups, cache=False))  # warm-up: numba and torch first calls
@@ -125,6 +135,8 @@ def main(argv=None) -> None:
     parser.add_argument("--repeat", type=int, default=3, help="timed runs (default: 3)")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (default: torch's choice)")
     parser.add_argument("--reference", help="git revision whose code segments the same mesh beside this one")
+    parser.add_argument("--set", default="", help="overrides of the one-epoch model's settings, field=value,... (default: none)")
+    parser.add_argument("--reference-set", help="the reference run's overrides instead of --set (\"\": the defaults)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--code", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -133,19 +145,23 @@ def main(argv=None) -> None:
         return
     own = [f"--subdivide={args.subdivide}", f"--near={args.near}", f"--repeat={args.repeat}", f"--threads={args.threads}", f"--config={args.config}",
            *([f"--mesh={args.mesh}"] if args.mesh else []), *([f"--model={args.model}"] if args.model else [])]
+    reference_set = args.set if args.reference_set is None else args.reference_set
 
-    def child(code: str | None) -> dict:  # a fresh process, so that the peak memory belongs to this mesh alone
+    def child(code: str | None, overrides: str) -> dict:  # a fresh process, so that the peak memory belongs to this mesh alone
         extra = ["--code", code] if code else []
-        done = subprocess.run([sys.executable, __file__, "--child", *own, *extra], check=True, capture_output=True, text=True)
+        done = subprocess.run([sys.executable, __file__, "--child", *own, f"--set={overrides}", *extra], check=True,
+                              capture_output=True, text=True)
         return json.loads(done.stdout.strip().splitlines()[-1])
 
     with reference_checkout(args.reference) as code:
-        ours = child(None)
-        reference = child(code) if code else None
-    print(ours["what"])
-    print_stages(ours["stages"], reference["stages"] if reference else None, name=args.reference or "reference")
+        ours = child(None, args.set)
+        compared = code is not None or args.reference_set is not None
+        reference = child(code, reference_set) if compared else None
+    print(ours["what"] + (f"\nsettings: [{args.set or 'defaults'}]" if args.set or compared else ""))
+    label = " ".join(filter(None, [args.reference, f"[{reference_set or 'defaults'}]" if args.reference_set is not None else ""]))
+    print_stages(ours["stages"], reference["stages"] if reference else None, name=label or "reference")
     print(f"peak resident memory: {ours['peak']:.2f} GiB (after loading: {ours['baseline']:.2f} GiB)"
-          + (f"; {args.reference}: {reference['peak']:.2f} GiB" if reference else ""))
+          + (f"; {label}: {reference['peak']:.2f} GiB" if reference else ""))
 
 
 if __name__ == "__main__":
