@@ -21,6 +21,7 @@ from anseg.collapse import (
     one_hot,
     pool,
     pool_labels,
+    rings_to_other_label,
     upsample,
     upsample_through,
 )
@@ -428,3 +429,32 @@ def test_no_face_folds_over_on_a_flat_mesh(mode):
     for _ in range(3):
         mesh, _, _ = run_cycle(mesh, mode, 0.6, rng, max_normal_flip_deg=179.0)
         assert (mesh.face_normals[:, 2] > 0).all()
+
+
+def test_rings_to_other_label_match_a_breadth_first_search_over_shared_edges():
+    from collections import deque
+
+    mesh = grid_mesh(6)
+    labels = (mesh.face_centroids[:, 0] > 2.5).astype(int) + 2 * (mesh.face_centroids[:, 1] > 4.2)
+    # neighbours from the faces' own edges, not from the mesh's adjacency tables
+    by_edge = {}
+    for face, corners in enumerate(mesh.faces):
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            by_edge.setdefault(tuple(sorted((corners[a], corners[b]))), []).append(face)
+    neighbours = {f: set() for f in range(mesh.n_faces)}
+    for faces in by_edge.values():
+        for f in faces:
+            neighbours[f].update(g for g in faces if g != f)
+    distance = np.full(mesh.n_faces, np.inf)
+    queue = deque()
+    for f in range(mesh.n_faces):
+        if any(labels[g] != labels[f] for g in neighbours[f]):
+            distance[f] = 1
+            queue.append(f)
+    while queue:
+        f = queue.popleft()
+        for g in neighbours[f]:
+            if distance[g] > distance[f] + 1:
+                distance[g] = distance[f] + 1
+                queue.append(g)
+    np.testing.assert_array_equal(rings_to_other_label(mesh, labels), distance)

@@ -47,9 +47,7 @@ def test_a_plan_on_a_local_cluster_matches_the_serial_run(tmp_path):
     plan = tiny_plan()
     serial, dask = ResultStore(tmp_path / "serial"), ResultStore(tmp_path / "dask")
     assert run_plan(plan, serial) == 0
-    started = time.time()
     assert run_plan(plan, dask, workers=2) == 0
-    assert time.time() - started < 300
     for a, b in zip(stored(serial, plan), stored(dask, plan)):
         assert same_numbers(a, b)
     assert all(dask.model_path(e.key(x)).is_file() for e, x in plan)

@@ -234,3 +234,21 @@ def test_spatial_context_switches_leave_the_keys_alone_at_zero():
     base = _v1_human()
     assert replace(base, train=replace(base.train, position_pairs=0, diffusion_blocks=0)).key() == base.key()
     assert replace(base, train=replace(base.train, diffusion_blocks=1)).key() != base.key()
+
+
+def test_evaluate_scores_match_an_independent_count(split):
+    from anseg.pipeline import segment
+
+    train_set, test_set = split
+    model = fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(epochs=1, width=16, depth=1), progress=False)
+    scores = evaluate(model, test_set[:2], progress=False)
+    results = [segment(m.mesh, model) for m in test_set[:2]]
+    for item, result, per_mesh in zip(test_set, results, scores["per_mesh"]):
+        right = item.mesh.face_areas[result.labels == item.labels].sum()
+        assert per_mesh["accuracy"] == pytest.approx(right / item.mesh.face_areas.sum())
+    # Eq. 5 with unit area: every mesh weighs the same, each face by its share of its mesh's area
+    for key, chosen in (("smoothed", [r.labels for r in results]), ("unsmoothed", [r.unsmoothed_labels for r in results])):
+        shares = [float(m.mesh.face_areas[c == m.labels].sum() / m.mesh.face_areas.sum()) for m, c in zip(test_set, chosen)]
+        assert scores[key]["unit_area"] == pytest.approx(np.mean(shares))
+        faces = sum(int((c == m.labels).sum()) for m, c in zip(test_set, chosen)) / sum(m.mesh.n_faces for m in test_set[:2])
+        assert scores[key]["faces"] == pytest.approx(faces)
