@@ -244,9 +244,9 @@ PER_NOTEBOOK = {
         "smoke": {"dataset": "synthetic", "category": "figure"},
     },
     "table4_ablation.ipynb": {
-        "real": {"categories": PSB_ABLATION},
-        "synthetic": {"categories": SYNTHETIC_CATEGORIES},
-        "smoke": {"categories": ["figure"]},
+        "real": {"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4]},
+        "synthetic": {"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1]},
+        "smoke": {"categories": ["figure"], "splits": [0]},
     },
     "fig12_features.ipynb": {
         "real": {"categories": PSB_ABLATION},
@@ -348,9 +348,9 @@ def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
         return [PlannedRun({"set": c}, *((c, None) if c in datasets.DATASETS else (dataset, c))) for c in categories]
     if name == "table3_human.ipynb":
         return [PlannedRun({}, dataset, p["category"])]
-    if name == "table4_ablation.ipynb":
-        return [PlannedRun({"category": c, "mode": row}, dataset, c, 0, *TABLE_IV_ROWS[row])
-                for c in categories for row in TABLE_IV_ROWS]
+    if name == "table4_ablation.ipynb":  # split by split, as Table I
+        return [PlannedRun({"category": c, "split": s, "mode": row}, dataset, c, s, *TABLE_IV_ROWS[row])
+                for s in p["splits"] for c in categories for row in TABLE_IV_ROWS]
     if name == "fig11_cycles_ratio.ipynb":
         return [PlannedRun({"category": c, "ratio": r, "cycles": n}, dataset, c, 0, {"cycles": n, "ratio": r})
                 for c in categories for r in p["ratios"] for n in p["cycles_list"]]

@@ -264,11 +264,13 @@ def bar_plot(
     title: str | None = None,
     legend_title: str | None = None,
     ylim: tuple[float, float] | None = None,
+    errors: Mapping[str, Sequence[float]] | None = None,
 ):
     """Grouped bars: one group per entry of ``groups`` (x), one coloured bar per entry of ``series`` (name -> value per group).
 
     Saved as a PNG at ``path``. The paper's Fig. 12: groups are categories,
-    series the feature sets, values the accuracy.
+    series the feature sets, values the accuracy. ``errors`` (name -> one
+    value per group, e.g. the standard deviation over splits) draws error bars.
     """
     if not series or not groups:
         raise ValueError("need at least one group and one series")
@@ -280,7 +282,9 @@ def bar_plot(
         values = np.asarray(values, dtype=float)
         if values.shape != (len(groups),):
             raise ValueError(f"series {name!r} has {values.size} values for {len(groups)} groups")
-        bars = ax.bar(centres + (i - (len(series) - 1) / 2) * width, values, width, color=tuple(colour), label=str(name))
+        spread = None if errors is None else np.asarray(errors[name], dtype=float)
+        bars = ax.bar(centres + (i - (len(series) - 1) / 2) * width, values, width, color=tuple(colour), label=str(name),
+                      yerr=spread, capsize=3 if spread is not None else 0)
         ax.bar_label(bars, fmt="%.1f", fontsize=7, padding=1)
     ax.set_xticks(centres, list(groups))
     ax.set_xlabel(xlabel)

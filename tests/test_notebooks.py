@@ -84,14 +84,16 @@ def test_real_plan_covers_every_table_once():
     keys = [experiment.key(options) for experiment, options in plan]
     assert len(keys) == len(set(keys))
     psb = [e for e, _ in plan if e.dataset == "psb"]
-    # Table I 16 per split, Table IV's uniform and two "none" rows on 3 categories, Fig. 12's 12, Fig. 11's 30 minus the default
+    # Table I 16 per split; Table IV's uniform and two "none" rows on 3 categories per split (its nonuniform row is
+    # Table I's); Fig. 12's 12, Fig. 11's 30 minus the default
     splits = len(PER_NOTEBOOK["table1_psb.ipynb"]["real"]["splits"])
-    assert len(psb) == 16 * splits + 9 + 12 + 29
+    table4_splits = len(PER_NOTEBOOK["table4_ablation.ipynb"]["real"]["splits"])
+    assert len(psb) == 16 * splits + 9 * table4_splits + 12 + 29
     assert {e.dataset for e, _ in plan} == {"psb", "coseg_aliens", "coseg_chairs", "coseg_vases", "human_seg"}
     only = planned_experiments("real", only=["table4"])
     rows = [("nonuniform", 2), ("uniform", 2), ("none", 0), ("none", 2)]  # (mode, depth): depth 0 is the paper's "none"
-    assert sorted((e.category, e.segment.mode, e.train.depth) for e, _ in only) == sorted(
-        (c, m, d) for c in ("Human", "Teddy", "Airplane") for m, d in rows)
+    assert sorted((e.category, e.split_index, e.segment.mode, e.train.depth) for e, _ in only) == sorted(
+        (c, s, m, d) for c in ("Human", "Teddy", "Airplane") for s in range(table4_splits) for m, d in rows)
 
 
 def test_a_named_configuration_is_the_start_of_every_planned_run():
