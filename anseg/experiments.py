@@ -223,6 +223,7 @@ COMMON = {
 
 SYNTHETIC_CATEGORIES = ["figure", "vessel"]
 PSB_ABLATION = ["Human", "Teddy", "Airplane"]
+OWN_FEATURES = "configuration's own"  # Fig. 12's fifth set: the groups of the configuration the runs start from
 # explore.ipynb: segment the category's first test mesh with a model trained here, statically rendered;
 # a user points mesh_path / model_path at their own files and sets interactive for a trame view.
 EXPLORE_DEFAULTS = {"mesh_path": None, "model_path": None, "interactive": False}
@@ -249,9 +250,9 @@ PER_NOTEBOOK = {
         "smoke": {"categories": ["figure"], "splits": [0]},
     },
     "fig12_features.ipynb": {
-        "real": {"categories": PSB_ABLATION},
-        "synthetic": {"categories": ["figure"]},
-        "smoke": {"categories": ["figure"]},
+        "real": {"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4]},
+        "synthetic": {"categories": ["figure"], "splits": [0]},
+        "smoke": {"categories": ["figure"], "splits": [0]},
     },
     "fig11_cycles_ratio.ipynb": {
         "real": {"categories": ["Airplane"], "cycles_list": [1, 2, 3, 4, 5, 6], "ratios": [0.3, 0.4, 0.5, 0.6, 0.7]},
@@ -354,9 +355,10 @@ def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
     if name == "fig11_cycles_ratio.ipynb":
         return [PlannedRun({"category": c, "ratio": r, "cycles": n}, dataset, c, 0, {"cycles": n, "ratio": r})
                 for c in categories for r in p["ratios"] for n in p["cycles_list"]]
-    if name == "fig12_features.ipynb":
-        return [PlannedRun({"category": c, "features": f}, dataset, c, 0, {"groups": g})
-                for c in categories for f, g in ABLATION_SETS.items()]
+    if name == "fig12_features.ipynb":  # the paper's four sets, then the configuration's own (Table I's run)
+        sets = {**ABLATION_SETS, OWN_FEATURES: tuple(SegmentConfig(**notebook_settings(p)[1]).groups)}
+        return [PlannedRun({"category": c, "split": s, "features": f}, dataset, c, s, {"groups": g})
+                for s in p["splits"] for c in categories for f, g in sets.items()]
     if name == "fig4_attention.ipynb":
         return [PlannedRun({"mode": m}, dataset, p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
     if name == "explore.ipynb":  # a model of the user's, or a shipped one, needs no training

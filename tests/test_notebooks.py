@@ -85,10 +85,11 @@ def test_real_plan_covers_every_table_once():
     assert len(keys) == len(set(keys))
     psb = [e for e, _ in plan if e.dataset == "psb"]
     # Table I 16 per split; Table IV's uniform and two "none" rows on 3 categories per split (its nonuniform row is
-    # Table I's); Fig. 12's 12, Fig. 11's 30 minus the default
+    # Table I's); Fig. 12's four paper sets on 3 categories per split (its fifth is Table I's); Fig. 11's 30 minus the default
     splits = len(PER_NOTEBOOK["table1_psb.ipynb"]["real"]["splits"])
     table4_splits = len(PER_NOTEBOOK["table4_ablation.ipynb"]["real"]["splits"])
-    assert len(psb) == 16 * splits + 9 * table4_splits + 12 + 29
+    fig12_splits = len(PER_NOTEBOOK["fig12_features.ipynb"]["real"]["splits"])
+    assert len(psb) == 16 * splits + 9 * table4_splits + 12 * fig12_splits + 29
     assert {e.dataset for e, _ in plan} == {"psb", "coseg_aliens", "coseg_chairs", "coseg_vases", "human_seg"}
     only = planned_experiments("real", only=["table4"])
     rows = [("nonuniform", 2), ("uniform", 2), ("none", 0), ("none", 2)]  # (mode, depth): depth 0 is the paper's "none"
