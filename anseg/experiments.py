@@ -254,10 +254,13 @@ PER_NOTEBOOK = {
         "synthetic": {"categories": ["figure"], "splits": [0]},
         "smoke": {"categories": ["figure"], "splits": [0]},
     },
+    # ``removed``: per category, the paper's downsampling ratios (the share of faces a cycle removes)
     "fig11_cycles_ratio.ipynb": {
-        "real": {"categories": ["Airplane"], "cycles_list": [1, 2, 3, 4, 5, 6], "ratios": [0.3, 0.4, 0.5, 0.6, 0.7]},
-        "synthetic": {"categories": ["figure"], "cycles_list": [1, 2, 4], "ratios": [0.3, 0.5, 0.7]},
-        "smoke": {"categories": ["figure"], "cycles_list": [1, 2], "ratios": [0.5]},
+        "real": {"categories": ["Airplane", "Human"], "cycles_list": [1, 2, 3, 4, 5, 6],
+                 "removed": {"Airplane": [0.3, 0.4, 0.5, 0.6, 0.7], "Human": [0.5]}, "splits": [0, 1, 2]},
+        "synthetic": {"categories": ["figure"], "cycles_list": [1, 2, 4], "removed": {"figure": [0.3, 0.5, 0.7]},
+                      "splits": [0]},
+        "smoke": {"categories": ["figure"], "cycles_list": [1, 2], "removed": {"figure": [0.5]}, "splits": [0]},
     },
     "fig4_attention.ipynb": {
         "real": {"category": "Human"},
@@ -352,9 +355,10 @@ def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
     if name == "table4_ablation.ipynb":  # split by split, as Table I
         return [PlannedRun({"category": c, "split": s, "mode": row}, dataset, c, s, *TABLE_IV_ROWS[row])
                 for s in p["splits"] for c in categories for row in TABLE_IV_ROWS]
-    if name == "fig11_cycles_ratio.ipynb":
-        return [PlannedRun({"category": c, "ratio": r, "cycles": n}, dataset, c, 0, {"cycles": n, "ratio": r})
-                for c in categories for r in p["ratios"] for n in p["cycles_list"]]
+    if name == "fig11_cycles_ratio.ipynb":  # SegmentConfig.ratio is the share kept: 1 - the paper's ratio
+        return [PlannedRun({"category": c, "split": s, "removed": r, "cycles": n}, dataset, c, s,
+                           {"cycles": n, "ratio": round(1 - r, 6)})
+                for s in p["splits"] for c in categories for r in p["removed"][c] for n in p["cycles_list"]]
     if name == "fig12_features.ipynb":  # the paper's four sets, then the configuration's own (Table I's run)
         sets = {**ABLATION_SETS, OWN_FEATURES: tuple(SegmentConfig(**notebook_settings(p)[1]).groups)}
         return [PlannedRun({"category": c, "split": s, "features": f}, dataset, c, s, {"groups": g})

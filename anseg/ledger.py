@@ -131,31 +131,40 @@ def _attention_at_junctions(results: Path) -> Verdict:
     return Verdict(evidence, HOLDS if (ratio > 1).all() else FAILS)
 
 
-def _cycles(results: Path) -> Verdict:
-    """Holds when, for most ratios, accuracy climbs from one cycle to a peak at more than one."""
+def _fig11(results: Path):
+    """Fig. 11's points as (category, removed, cycles) -> mean accuracy over the splits run, and that count."""
     table = _csv(results, "fig11_cycles_ratio.csv")
+    if "removed" not in table:  # written before the notebook spoke the paper's terms: "ratio" was the share kept
+        table["removed"] = (1 - table["ratio"]).round(3)
+    splits = table["split"].nunique() if "split" in table else 1
+    return table.groupby(["category", "removed", "cycles"]).unit_area.mean(), splits
+
+
+def _cycles(results: Path) -> Verdict:
+    """Holds when, for most ratios, the mean accuracy climbs from one cycle to a peak at more than one."""
+    points, splits = _fig11(results)
     climbs, curves = 0, 0
-    for _, curve in table.groupby(["category", "ratio"]):
-        curve = curve.sort_values("cycles")
+    for _, curve in points.groupby(["category", "removed"]):
+        curve = curve.droplevel([0, 1]).sort_index()
         curves += 1
-        climbs += int(curve.unit_area.idxmax() != curve.index[0])
-    return Verdict(f"{climbs} of {curves} curves (category x ratio) peak beyond N = {table.cycles.min()}; "
-                   "one split, no spread", HOLDS if climbs > curves / 2 else FAILS)
+        climbs += int(curve.idxmax() != curve.index[0])
+    return Verdict(f"{climbs} of {curves} curves (category x ratio) peak beyond N = 1; mean over {splits} split(s)",
+                   HOLDS if climbs > curves / 2 else FAILS)
 
 
 def _best_setting(results: Path) -> Verdict:
     """Holds when the paper's N = 4, removing 0.5 per cycle, is the best point of the grid for every category."""
-    table = _csv(results, "fig11_cycles_ratio.csv")
+    points, splits = _fig11(results)
     choice = reference.FIG11_CHOICE
     parts, best_everywhere = [], True
-    for category, grid in table.groupby("category"):
-        best = grid.loc[grid.unit_area.idxmax()]
-        chosen = grid[(grid.cycles == choice["cycles"]) & ((1 - grid.ratio).round(3) == choice["removed"])]
-        at_choice = f"{chosen.unit_area.iloc[0]:.2f}" if len(chosen) else "not run"
-        parts.append(f"{category}: best N = {best.cycles}, removing {1 - best.ratio:.1f} ({best.unit_area:.2f}); "
-                     f"the paper's choice {at_choice}")
-        best_everywhere &= len(chosen) > 0 and chosen.unit_area.iloc[0] >= best.unit_area
-    return Verdict("; ".join(parts) + " (one split, no spread)", HOLDS if best_everywhere else FAILS)
+    for category, grid in points.groupby("category"):
+        grid = grid.droplevel(0)
+        (removed, cycles), best = grid.idxmax(), grid.max()
+        chosen = grid.get((choice["removed"], choice["cycles"]))
+        parts.append(f"{category}: best N = {cycles}, removing {removed:g} ({best:.2f}); the paper's choice "
+                     + (f"{chosen:.2f}" if chosen is not None else "not run"))
+        best_everywhere &= chosen is not None and chosen >= best
+    return Verdict("; ".join(parts) + f" (mean over {splits} split(s))", HOLDS if best_everywhere else FAILS)
 
 
 def _features(results: Path) -> Verdict:

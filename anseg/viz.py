@@ -229,11 +229,13 @@ def line_plot(
     ylabel: str,
     title: str | None = None,
     legend_title: str | None = None,
+    bands: Mapping[str, Sequence[float]] | None = None,
 ):
     """One coloured line with markers per entry of ``series`` (name -> y over ``x``), saved as a PNG at ``path``.
 
     Missing values (NaN) leave gaps. The paper's Fig. 11: x the number of
-    cycles, one line per downsampling ratio, y the accuracy.
+    cycles, one line per downsampling ratio, y the accuracy. ``bands`` (name ->
+    a half-width per x, e.g. the standard deviation over splits) shades y ± it.
     """
     if not series:
         raise ValueError("no series to plot")
@@ -244,6 +246,9 @@ def line_plot(
         if ys.shape != (len(x),):
             raise ValueError(f"series {name!r} has {ys.size} values for {len(x)} x positions")
         ax.plot(x, ys, marker="o", color=tuple(colour), label=str(name))
+        if bands is not None and name in bands:
+            half = np.asarray(bands[name], dtype=float)
+            ax.fill_between(x, ys - half, ys + half, color=tuple(colour), alpha=0.15, linewidth=0)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_xticks(list(x))

@@ -85,11 +85,15 @@ def test_real_plan_covers_every_table_once():
     assert len(keys) == len(set(keys))
     psb = [e for e, _ in plan if e.dataset == "psb"]
     # Table I 16 per split; Table IV's uniform and two "none" rows on 3 categories per split (its nonuniform row is
-    # Table I's); Fig. 12's four paper sets on 3 categories per split (its fifth is Table I's); Fig. 11's 30 minus the default
+    # Table I's); Fig. 12's four paper sets on 3 categories per split (its fifth is Table I's); Fig. 11's grid on its
+    # splits, less its points at N = 4 removing half (Table I's runs)
     splits = len(PER_NOTEBOOK["table1_psb.ipynb"]["real"]["splits"])
     table4_splits = len(PER_NOTEBOOK["table4_ablation.ipynb"]["real"]["splits"])
     fig12_splits = len(PER_NOTEBOOK["fig12_features.ipynb"]["real"]["splits"])
-    assert len(psb) == 16 * splits + 9 * table4_splits + 12 * fig12_splits + 29
+    fig11 = PER_NOTEBOOK["fig11_cycles_ratio.ipynb"]["real"]
+    fig11_runs = sum(len(r) for r in fig11["removed"].values()) * len(fig11["cycles_list"]) * len(fig11["splits"])
+    fig11_shared = len(fig11["removed"]) * len(fig11["splits"])
+    assert len(psb) == 16 * splits + 9 * table4_splits + 12 * fig12_splits + fig11_runs - fig11_shared
     assert {e.dataset for e, _ in plan} == {"psb", "coseg_aliens", "coseg_chairs", "coseg_vases", "human_seg"}
     only = planned_experiments("real", only=["table4"])
     rows = [("nonuniform", 2), ("uniform", 2), ("none", 0), ("none", 2)]  # (mode, depth): depth 0 is the paper's "none"
