@@ -32,7 +32,7 @@ def headline(results_dir: Path) -> str:
     peers = [c for c in table1.columns if c.endswith("our data, split 0") and table1[c].notna().any()]
     lines = [f"PSB, Table I ([notebook](notebooks/executed/table1_psb.ipynb)): Eq. 5 with unit area, "
              f"{split.split('(')[1].rstrip(')')}, graph cut on; beside ours the paper's column and the reference "
-             "points DESIGN.md measured on exactly our data (split 0)."
+             "points this project measured on exactly our data (split 0)."
              + (f" Then our mean over {n_splits} splits and its standard deviation (in the mean row: the spread of "
                 "the 16-category mean from split to split)." if more else ""),
              "", "| category | ours | paper | ours − paper | " + " | ".join(c.split(",")[0] for c in peers)

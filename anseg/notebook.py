@@ -78,6 +78,11 @@ class NotebookRun:
         """Every planned run with its result, in the plan's order."""
         return [(run, self.result(run)) for run in self.planned]
 
+    def stored_result(self, run: PlannedRun, config: str) -> dict | None:
+        """The stored result of ``run`` under another named configuration, or None: read, never trained."""
+        experiment, options = planned_experiment(run, {**self.parameters, "config": config})
+        return self.store.get(experiment.key(options))
+
     def has_model(self, result: dict) -> bool:
         """Whether the model of a result is on this machine (a result store can travel without its models)."""
         return self.store.model_path(result["key"]).is_file()

@@ -5,7 +5,7 @@ features, patch layout, attention, collapse record), which training and the
 figures need; ``segment`` adds the classification, the upsampling through
 the collapse records and the graph cut.
 
-Choices this module makes (see DESIGN.md):
+Choices this module makes:
 
 * Features of a coarser level: the local groups (edge, angles, ratios, gc)
   are recomputed on the coarse mesh; the global ones (sdf, agd) are pooled,
