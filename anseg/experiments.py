@@ -370,8 +370,13 @@ def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
         sets = {**ABLATION_SETS, OWN_FEATURES: tuple(SegmentConfig(**notebook_settings(p)[1]).groups)}
         return [PlannedRun({"category": c, "split": s, "features": f}, dataset, c, s, {"groups": g})
                 for s in p["splits"] for c in categories for f, g in sets.items()]
-    if name == "fig4_attention.ipynb":
-        return [PlannedRun({"mode": m}, dataset, p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
+    if name == "fig4_attention.ipynb":  # the three modes, and the paper's unsupervised attention (Table I's run)
+        from anseg.configs import overrides
+
+        plain_segment, plain_train = overrides(PLAIN_READING)
+        return ([PlannedRun({"mode": m}, dataset, p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
+                + [PlannedRun({"mode": "nonuniform", "configuration": PLAIN_READING}, dataset, p["category"], 0,
+                              plain_segment, plain_train)])
     if name == "explore.ipynb":  # a model of the user's, or a shipped one, needs no training
         return [] if p.get("model_path") or explore_model_name(p) else [PlannedRun({}, dataset, p["category"])]
     if name == "claims_ledger.ipynb":  # trains nothing: reads the other notebooks' results

@@ -116,19 +116,30 @@ def _ablation_order(results: Path) -> Verdict:
 
 
 def _attention_at_junctions(results: Path) -> Verdict:
-    """Holds when, on every level of the nonuniform hierarchy, faces near a label boundary get more attention than the rest.
+    """Whether attention trained by the class loss alone (the paper's) marks the faces near label boundaries.
 
-    The default's attention is trained towards label boundaries (anseg.train),
-    so this holds by construction there; the paper's claim is for attention
-    trained by the class loss alone, which only a ``paper`` configuration run
-    can test.
+    Read from Fig. 4's table: with the ``paper`` configuration's model, the
+    attention's AUC for faces near a boundary against the rest, on every
+    level of the nonuniform hierarchy (holds when above 0.5 on every one).
+    Our default's attention is trained towards boundaries, so it marks them
+    by construction; a table written before the ``paper`` model was read
+    shows the default's attention ratio and decides nothing.
     """
+    from anseg.experiments import PLAIN_READING
+
     table = _csv(results, "fig4_attention.csv")
+    auc = "attention AUC, near vs elsewhere"
+    if auc in table and PLAIN_READING in set(table.get("model", [])):
+        rows = table[(table.model == PLAIN_READING) & (table.downsampling == "nonuniform")][auc]
+        ours = table[(table.model == "ours") & (table.downsampling == "nonuniform")][auc]
+        evidence = (f"AUC of near-boundary faces by level, nonuniform: the paper's unsupervised attention "
+                    f"{', '.join(f'{a:.2f}' for a in rows)}; ours (supervised) {', '.join(f'{a:.2f}' for a in ours)}")
+        return Verdict(evidence, HOLDS if (rows > 0.5).all() else FAILS)
     rows = table[table.downsampling == "nonuniform"]
     ratio = rows["mean attention near boundaries"] / rows["mean attention elsewhere"]
     evidence = ("near boundaries / elsewhere, by level: " + ", ".join(f"{r:.2f}" for r in ratio)
-                + " (our attention is supervised towards boundaries; the paper's is not)")
-    return Verdict(evidence, HOLDS if (ratio > 1).all() else FAILS)
+                + " (our attention, supervised towards boundaries; the paper's, unsupervised, is not read yet)")
+    return Verdict(evidence, UNTESTED)
 
 
 def _fig11(results: Path):
