@@ -153,9 +153,8 @@ def _segment(args) -> None:
         if len(args.paths) != 1:
             raise ValueError("with --model, give only the mesh file")
         from anseg.pretrained import resolve
-        from anseg.train import resolve_device
 
-        model, args.mesh = resolve(args.model_name, device=resolve_device("auto")), args.paths[0]
+        model, args.mesh = _load_model(resolve(args.model_name)), args.paths[0]
     else:
         if len(args.paths) != 2:
             raise ValueError("give a model file and a mesh file, or --model NAME and a mesh file (`anseg models` lists the names)")

@@ -66,7 +66,7 @@ over its training set.
 Nothing here is random: the SDF ray pattern and the AGD sources are fixed
 functions of the geometry, so results are deterministic.
 
-Meshes above :data:`LARGE_MESH_FACES` faces (scans, CAD; no benchmark mesh
+Meshes above :data:`anseg.proxy.LARGE_MESH_FACES` faces (scans, CAD; no benchmark mesh
 is that large) take faster paths, so that 300K faces cost seconds, not
 minutes: the SDF rays are cast by embree, and the AGD, the HKS and the
 ``smooth`` group's diffusion are computed on one uniform collapse of the
@@ -81,7 +81,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import warnings
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, fields
@@ -94,6 +93,7 @@ from numba import njit, prange
 from tqdm.auto import tqdm
 
 from anseg.cache import atomic_write, cache_dir, read_checked_array, write_checked_array
+from anseg import proxy
 from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
 from anseg.spectral import SPECTRUM_PAIRS, factor_spd, laplacian_eigenpairs
@@ -132,10 +132,6 @@ _RAYS_PER_CALL = 1 << 20  # bounds the memory of the ray arrays on big meshes
 _BVH_LEAF = 4  # triangles per leaf of the ray-casting tree
 DIRECT_SOLVE_MAX_VERTICES = 30_000  # the smooth group's diffusion: sparse LU up to here, multigrid-preconditioned CG above
 DIFFUSION_RTOL = 1e-10  # the iterative diffusion of the smooth group: relative residual
-# Above this many faces (the largest benchmark mesh has 55,644) the SDF rays go through embree and the AGD is computed on
-# a uniform collapse of PROXY_FACES faces (_shape_diameter, _Geometry.agd); smaller meshes as they always were.
-LARGE_MESH_FACES = 60_000
-PROXY_FACES = 50_000  # about the size of the larger benchmark meshes
 PROGRESS_MIN_FACES = 100_000  # a single mesh shows a progress bar from this size (tens of seconds of work)
 POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces in all (about a second of work)
 
@@ -209,19 +205,11 @@ def feature_names(groups: Sequence[str] = DEFAULT_GROUPS, **settings) -> list[st
 
 
 # ---------------------------------------------------------------- geometry
-def geometry(mesh: Mesh) -> "_Geometry":
-    """The unit-area, centred mesh (unreferenced vertices dropped) with the quantities groups share, at default settings."""
-    return _Geometry(mesh, FeatureSettings())
-
-
 class _Geometry:
     """The unit-area, centred mesh and the quantities several groups share, each computed once."""
 
     def __init__(self, mesh: Mesh, settings: FeatureSettings):
-        normal = mesh.normalized()
-        used, faces = np.unique(normal.faces, return_inverse=True)
-        # unreferenced vertices would make the Laplacians singular
-        self.mesh = normal if len(used) == normal.n_vertices else Mesh(normal.vertices[used], faces.reshape(-1, 3))
+        self.mesh = proxy.unit_area(mesh)
         self.settings = settings
 
     @cached_property
@@ -292,41 +280,37 @@ class _Geometry:
         are the same either way; with one thread (parallel workers) or the
         large-mesh paths nothing changes.
         """
-        if _threads_allowed() < 2 or self.mesh.n_faces > LARGE_MESH_FACES or {"sdf", "agd"} & self.__dict__.keys():
+        if _threads_allowed() < 2 or self.mesh.n_faces > proxy.LARGE_MESH_FACES or {"sdf", "agd"} & self.__dict__.keys():
             return
         self.__dict__["sdf"] = _shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions,
                                                self.settings, beside=lambda: self.agd)
 
     @cached_property
     def proxy(self) -> tuple["_Geometry", np.ndarray]:
-        """A uniform collapse of the mesh to :data:`PROXY_FACES` faces, and each input face's face on it.
+        """The mesh's :func:`anseg.proxy.collapse_to_proxy`, and each input face's face on it.
 
-        For meshes above :data:`LARGE_MESH_FACES` faces: the smooth global
-        descriptors (``agd``, ``hks``, the ``smooth`` group's diffusion) are
-        computed there, whose cost grows faster than the mesh.
+        For meshes above :data:`anseg.proxy.LARGE_MESH_FACES` faces: the smooth
+        global descriptors (``agd``, ``hks``, the ``smooth`` group's diffusion)
+        are computed there, whose cost grows faster than the mesh.
         """
-        from anseg import collapse
-
-        with warnings.catch_warnings():  # a target missed by a few faces changes nothing here
-            warnings.simplefilter("ignore", collapse.CollapseWarning)
-            coarse, record = collapse.downsample(self.mesh, None, ratio=PROXY_FACES / self.mesh.n_faces, mode="uniform")
-        return _Geometry(coarse, self.settings), collapse.compose([record])
+        coarse, face_of = proxy.collapse_to_proxy(self.mesh)
+        return _Geometry(coarse, self.settings), face_of
 
     @cached_property
     def agd(self) -> np.ndarray:
-        """Per-face AGD; above :data:`LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
+        """Per-face AGD; above :data:`anseg.proxy.LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
 
         The heat method's factorisation grows faster than the mesh (24 s of a
         330K-face sphere's 57 s of features). AGD is smooth over the surface,
         and the heat method's own error scales with the edge length, so the
-        values of a collapse to :data:`PROXY_FACES` faces are as close to
+        values of a collapse to :data:`anseg.proxy.PROXY_FACES` faces are as close to
         those of the benchmark meshes the models learn from (up to 56K faces)
         as the full mesh's: on PSB Human/6 subdivided to 323K faces, the
         proxy's AGD has a correlation of 0.998 with the full mesh's and a
         median relative difference of 3.7 %, for 2.7 s instead of 9.1 s.
         Meshes at or below the threshold are computed as they always were.
         """
-        if self.mesh.n_faces > LARGE_MESH_FACES:
+        if self.mesh.n_faces > proxy.LARGE_MESH_FACES:
             coarse, face_of = self.proxy
             return coarse.agd[face_of]
         per_vertex = _average_geodesic_distance(self.mesh, self.settings.agd_sources)
@@ -334,7 +318,7 @@ class _Geometry:
 
     @cached_property
     def hks(self) -> np.ndarray:
-        """Per-face HKS; above :data:`LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
+        """Per-face HKS; above :data:`anseg.proxy.LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
 
         The shift-invert eigensolve factorises the Laplacian and its cost
         grows faster than the mesh, while the lowest :data:`HKS_EIGENPAIRS`
@@ -344,7 +328,7 @@ class _Geometry:
         for the others, for the eigensolve of a 50K-face mesh (2.5 s)
         instead of 22 s. The AGD shares the proxy, so its collapse is paid once.
         """
-        if self.mesh.n_faces > LARGE_MESH_FACES:
+        if self.mesh.n_faces > proxy.LARGE_MESH_FACES:
             coarse, face_of = self.proxy
             return coarse.hks[face_of]
         per_vertex = _heat_kernel_signature(self.mesh, HKS_EIGENPAIRS, np.array(HKS_TIMES))
@@ -386,7 +370,7 @@ def _agd(g: _Geometry) -> np.ndarray:
 
 def _smooth(g: _Geometry) -> np.ndarray:
     signals = np.stack([g.sdf, g.gc_slog, g.agd], axis=1)
-    if g.mesh.n_faces > LARGE_MESH_FACES:
+    if g.mesh.n_faces > proxy.LARGE_MESH_FACES:
         per_radius = _diffuse_through_proxy(g, signals, g.settings.smooth_radii)
     else:
         per_radius = _diffuse_on_faces(g.mesh, signals, g.settings.smooth_radii)
@@ -434,7 +418,7 @@ def _shape_diameter(mesh: Mesh, outward: np.ndarray, tangent: np.ndarray, settin
     pattern = _cone_pattern(settings.sdf_rays, settings.sdf_cone_degrees)
     inward = -outward
     frame = np.stack([tangent, np.cross(inward, tangent), inward], axis=1)  # (F, 3 axes, 3)
-    cast = _embree_caster(mesh) if mesh.n_faces > LARGE_MESH_FACES else partial(_first_hits, _build_bvh(mesh.vertices, mesh.faces))
+    cast = _embree_caster(mesh) if mesh.n_faces > proxy.LARGE_MESH_FACES else partial(_first_hits, _build_bvh(mesh.vertices, mesh.faces))
     n_faces, n_rays = mesh.n_faces, len(pattern)
     lengths = np.full((n_faces, n_rays), np.nan)
     chunk = max(1, _RAYS_PER_CALL // n_rays)
@@ -529,7 +513,7 @@ def _build_bvh(vertices: np.ndarray, faces: np.ndarray) -> tuple:
 def _embree_caster(mesh: Mesh):
     """First hits through embree (embreex): 3x faster than our tree at 330K faces, in float32.
 
-    Used above :data:`LARGE_MESH_FACES` only: on a 330K-face mesh it finds the
+    Used above :data:`anseg.proxy.LARGE_MESH_FACES` only: on a 330K-face mesh it finds the
     same face for 99.998 % of the SDF rays, at distances within a relative
     5e-8, but those float32 distances would move the last bits of every
     stored feature of the benchmark meshes, and with them the stored runs.
@@ -771,7 +755,7 @@ def _diffusion_solves(mass, laplacian, rhs: np.ndarray, radii: Sequence[float], 
     solves it (0.12 s at 20K faces, half the time of the iterative solve);
     its fill grows much faster than the mesh (20 s per radius at 82K faces,
     more than 10 minutes at 330K), so more vertices (an open or fragmented
-    mesh of up to :data:`LARGE_MESH_FACES` faces, or its proxy) are solved by
+    mesh of up to :data:`anseg.proxy.LARGE_MESH_FACES` faces, or its proxy) are solved by
     conjugate gradients preconditioned by smoothed-aggregation algebraic
     multigrid (pyamg) to a relative residual of :data:`DIFFUSION_RTOL`, each
     radius starting from the last one's solution: at 330K faces 4 s where
@@ -911,8 +895,8 @@ def _cache_path(mesh: Mesh, groups: tuple[str, ...], settings: FeatureSettings) 
     digest = hashlib.sha256()
     # "sha256": the entry ends with its checksum (entries written before it are not looked for)
     digest.update(f"anseg-features v{FEATURES_VERSION}|sha256|{groups}|{sorted(asdict(settings).items())}|".encode())
-    if mesh.n_faces > LARGE_MESH_FACES:  # the large-mesh paths compute otherwise than before they existed
-        digest.update(f"large mesh: embree sdf, agd, hks and smooth proxy {PROXY_FACES}|".encode())
+    if mesh.n_faces > proxy.LARGE_MESH_FACES:  # the large-mesh paths compute otherwise than before they existed
+        digest.update(f"large mesh: embree sdf, agd, hks and smooth proxy {proxy.PROXY_FACES}|".encode())
     digest.update(f"{mesh.vertices.shape}{mesh.faces.shape}".encode())
     digest.update(mesh.vertices.tobytes())
     digest.update(mesh.faces.tobytes())

@@ -188,7 +188,7 @@ class Segmenter:
         """A model shipped with the package, by its name in ``anseg models`` (:mod:`anseg.pretrained`)."""
         from anseg import pretrained
 
-        return pretrained.load(name, device)
+        return cls.load(pretrained.path(name), device)
 
     @classmethod
     def load(cls, path: str | os.PathLike, device="cpu") -> "Segmenter":

@@ -10,7 +10,9 @@ changes no label of those test meshes (the card says which).
 
 A name is looked up in the index and nothing else: the file a name leads to
 comes from the index, never from the name, so no user string reaches the
-file system. :func:`resolve` takes a name or the path of a model file.
+file system. :func:`resolve` takes a name or the path of a model file;
+``Segmenter.pretrained(name)`` loads one. ``scripts/publish_models.py``
+writes them from the result store.
 """
 
 from __future__ import annotations
@@ -43,23 +45,18 @@ def card(name: str) -> dict:
     return known[name]
 
 
-def load(name: str, device="cpu"):
-    """The shipped model ``name`` as a :class:`~anseg.pipeline.Segmenter` (float32, in eval mode)."""
-    from anseg.pipeline import Segmenter
-
-    entry = card(name)
-    return Segmenter.load(MODELS / Path(entry["file"]).name, device=device)
+def path(name: str) -> Path:
+    """The file of the shipped model ``name``: taken from the index, never built from the name."""
+    return MODELS / Path(card(name)["file"]).name
 
 
-def resolve(name_or_path: str | os.PathLike, device="cpu"):
-    """A model from a file the user names, or else from the shipped ones; a one-line ValueError when it is neither."""
-    from anseg.pipeline import Segmenter
-
-    path = Path(name_or_path)
-    if path.is_file():
-        return Segmenter.load(path, device=device)
+def resolve(name_or_path: str | os.PathLike) -> Path:
+    """A model file the user names, or else the file of a shipped model; a one-line ValueError when it is neither."""
+    given = Path(name_or_path)
+    if given.is_file():
+        return given
     if str(name_or_path) in cards():
-        return load(str(name_or_path), device)
+        return path(str(name_or_path))
     raise ValueError(f"{name_or_path}: neither a model file nor a pretrained model (`anseg models` lists them: "
                      f"{', '.join(names()) or 'none are shipped with this installation'})")
 
@@ -70,45 +67,3 @@ def describe(name: str) -> str:
     accuracy = c["test_accuracy"]["unit_area"]
     return (f"{name:<20} {c['data']}, {c['split']}; test accuracy {100 * accuracy:.2f} % (Eq. 5, unit area); "
             f"{c['configuration']['name']}, {c['precision']}")
-
-
-def publish(model, name: str, result: dict, test_set, configuration: str, out: Path = MODELS) -> dict:
-    """Write ``model`` as the shipped model ``name`` with its card, from the stored ``result`` it was trained in.
-
-    Stores float16 weights when segmenting ``test_set`` with them gives the
-    same labels as float32 on every face, float32 otherwise; the card records
-    which, and the accuracy from ``result`` (the run's one reading of its
-    test split).
-    """
-    import io
-
-    import numpy as np
-
-    from anseg.pipeline import Segmenter, feature_code, segment
-
-    if not name.replace("/", "").replace("_", "").isalnum() or name.count("/") > 1:
-        raise ValueError(f"model names are letters, digits, '_' and one '/', got {name!r}")
-    half = Segmenter.load(io.BytesIO(model.to_bytes(half=True)))
-    same = all(np.array_equal(segment(m.mesh, model).labels, segment(m.mesh, half).labels) for m in test_set)
-    file = f"{name.replace('/', '_')}.pt"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / file).write_bytes(model.to_bytes(half=same))
-    env = result["environment"]
-    entry = {
-        "file": file,
-        "data": f"{result['dataset']}" + (f" {result['category']}" if result.get("category") else ""),
-        "split": f"split {result.get('split_index', 0)}: {result.get('n_train', '?')} training meshes",
-        "configuration": {"name": configuration, "segment": result["segment"],
-                          "train": result["train"]},
-        "test_accuracy": result["accuracy"],
-        "test_meshes": len(test_set),
-        "precision": "float16 (no test label changes)" if same else "float32 (float16 changed test labels)",
-        "code_revision": env.get("code_revision"),
-        "trained_on": env.get("cuda") or f"CPU, {env.get('cpus')} cores",
-        "date": env.get("date"),
-        "feature_code": feature_code(),
-    }
-    index = json.loads((out / "index.json").read_text()) if (out / "index.json").is_file() else {}
-    index[name] = entry
-    (out / "index.json").write_text(json.dumps(dict(sorted(index.items())), indent=1) + "\n")
-    return entry

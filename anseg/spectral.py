@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from anseg import proxy
 from anseg.cache import atomic_write, cache_dir, read_checked_array, write_checked_array
 from anseg.mesh import Mesh
 
@@ -95,23 +96,21 @@ def face_spectrum(mesh: Mesh, n_pairs: int = SPECTRUM_PAIRS, cache: bool = True)
 
     A mesh with too few vertices for ``n_pairs`` gets zero columns past its
     last eigenvector (they carry nothing through a product with the basis).
-    Above :data:`anseg.features.LARGE_MESH_FACES` faces the basis is solved
+    Above :data:`anseg.proxy.LARGE_MESH_FACES` faces the basis is solved
     on the same uniform collapse the large-mesh HKS uses and each face takes
     its face's values there: the low eigenvectors are smooth.
     """
-    from anseg import features
-
     path = _cache_path(mesh, n_pairs) if cache else None
     if path is not None and (stored := read_checked_array(path, (mesh.n_faces + 1, n_pairs))) is not None:
         return Spectrum(stored[0].astype(np.float64), stored[1:])
-    geometry = features.geometry(mesh)
-    if mesh.n_faces > features.LARGE_MESH_FACES:
-        coarse, face_of = geometry.proxy
-        values, vectors = laplacian_eigenpairs(coarse.mesh, n_pairs)
-        per_face = vectors[coarse.mesh.faces].mean(axis=1)[face_of]
-    else:
-        values, vectors = laplacian_eigenpairs(geometry.mesh, n_pairs)
-        per_face = vectors[geometry.mesh.faces].mean(axis=1)
+    surface, face_of = proxy.unit_area(mesh), None
+    if surface.n_faces > proxy.LARGE_MESH_FACES:
+        coarse, face_of = proxy.collapse_to_proxy(surface)
+        surface = proxy.unit_area(coarse)
+    values, vectors = laplacian_eigenpairs(surface, n_pairs)
+    per_face = vectors[surface.faces].mean(axis=1)
+    if face_of is not None:
+        per_face = per_face[face_of]
     stored = np.zeros((mesh.n_faces + 1, n_pairs), dtype=np.float32)
     stored[0, : len(values)], stored[0, len(values) :] = values, values[-1]
     stored[1:, : len(values)] = per_face

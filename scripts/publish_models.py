@@ -5,8 +5,8 @@
 Takes, for every run of those notebooks' real plan under ``--config``, the
 stored result (``results/runs/<key>.json``) and its model
 (``results/models/<key>.pt``), and writes it with its model card into
-``anseg/pretrained/`` (:func:`anseg.pretrained.publish`: float16 where that
-changes no test label). Trains nothing: a run whose result or model is not
+``anseg/pretrained/`` (:func:`publish`: float16 where that changes no test
+label). Trains nothing: a run whose result or model is not
 here is listed and left out. The test meshes are read only to check the
 float16 copy against the trained model, after the run's one reading of them.
 """
@@ -14,16 +14,57 @@ float16 copy against the trained model, after the run's one reading of them.
 from __future__ import annotations
 
 import argparse
+import io
+import json
 import sys
+from pathlib import Path
+
+import numpy as np
 
 from anseg import datasets, pretrained
 from anseg.experiments import REPO, ResultStore, notebook_parameters, notebook_runs, planned_experiment
-from anseg.pipeline import Segmenter
+from anseg.pipeline import Segmenter, feature_code, segment
 
 # which notebook runs become which shipped names
 SOURCES = {"table1_psb.ipynb": lambda run: f"psb/{run.category}" if run.split == 0 else None,
            "table3_human.ipynb": lambda run: "human_seg",
            "table2_coseg.ipynb": lambda run: run.dataset if run.category is None else None}
+
+
+def publish(model, name: str, result: dict, test_set, configuration: str, out: Path = pretrained.MODELS) -> dict:
+    """Write ``model`` as the shipped model ``name`` with its card, from the stored ``result`` it was trained in.
+
+    Stores float16 weights when segmenting ``test_set`` with them gives the
+    same labels as float32 on every face, float32 otherwise; the card records
+    which, and the accuracy from ``result`` (the run's one reading of its
+    test split).
+    """
+    if not name.replace("/", "").replace("_", "").isalnum() or name.count("/") > 1:
+        raise ValueError(f"model names are letters, digits, '_' and one '/', got {name!r}")
+    half = Segmenter.load(io.BytesIO(model.to_bytes(half=True)))
+    same = all(np.array_equal(segment(m.mesh, model).labels, segment(m.mesh, half).labels) for m in test_set)
+    file = f"{name.replace('/', '_')}.pt"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / file).write_bytes(model.to_bytes(half=same))
+    env = result["environment"]
+    entry = {
+        "file": file,
+        "data": f"{result['dataset']}" + (f" {result['category']}" if result.get("category") else ""),
+        "split": f"split {result.get('split_index', 0)}: {result.get('n_train', '?')} training meshes",
+        "configuration": {"name": configuration, "segment": result["segment"],
+                          "train": result["train"]},
+        "test_accuracy": result["accuracy"],
+        "test_meshes": len(test_set),
+        "precision": "float16 (no test label changes)" if same else "float32 (float16 changed test labels)",
+        "code_revision": env.get("code_revision"),
+        "trained_on": env.get("cuda") or f"CPU, {env.get('cpus')} cores",
+        "date": env.get("date"),
+        "feature_code": feature_code(),
+    }
+    index = json.loads((out / "index.json").read_text()) if (out / "index.json").is_file() else {}
+    index[name] = entry
+    (out / "index.json").write_text(json.dumps(dict(sorted(index.items())), indent=1) + "\n")
+    return entry
 
 
 def main(argv=None) -> int:
@@ -45,7 +86,7 @@ def main(argv=None) -> int:
                 continue
             test_set = datasets.load(experiment.dataset, experiment.category, "test", experiment.split_index,
                                      root=args.data, progress=False)
-            entry = pretrained.publish(Segmenter.load(store.model_path(key)), name, result, test_set, args.config)
+            entry = publish(Segmenter.load(store.model_path(key)), name, result, test_set, args.config)
             print(f"{name}: {entry['precision']}, test accuracy {100 * entry['test_accuracy']['unit_area']:.2f} %")
     if missing:
         print(f"not published (no stored result or model here): {', '.join(missing)}", file=sys.stderr)

@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
 
-from anseg import cache, collapse, features
+from anseg import cache, collapse, features, proxy
 from anseg.mesh import Mesh, MeshError
 from conftest import grid_mesh
 
@@ -246,8 +246,8 @@ def ellipsoid() -> Mesh:
 
 def take_the_large_mesh_paths(monkeypatch) -> None:
     """Meshes above 4000 faces take the large-mesh paths, with a 1200-face proxy."""
-    monkeypatch.setattr(features, "LARGE_MESH_FACES", 4000)
-    monkeypatch.setattr(features, "PROXY_FACES", 1200)
+    monkeypatch.setattr(proxy, "LARGE_MESH_FACES", 4000)
+    monkeypatch.setattr(proxy, "PROXY_FACES", 1200)
 
 
 def test_agd_of_a_large_mesh_comes_from_its_collapse_and_keys_its_own_cache_entry(cache_root, monkeypatch):
@@ -467,7 +467,7 @@ def test_ray_caster_on_a_single_triangle():
 def test_sdf_of_a_large_mesh_through_embree_matches_our_ray_caster(monkeypatch):
     mesh = blob()
     ours = features.compute_groups(mesh, ["sdf"], **FAST)["sdf"]
-    monkeypatch.setattr(features, "LARGE_MESH_FACES", mesh.n_faces - 1)
+    monkeypatch.setattr(proxy, "LARGE_MESH_FACES", mesh.n_faces - 1)
     embree = features.compute_groups(mesh, ["sdf"], **FAST)["sdf"]
     np.testing.assert_allclose(embree[:, 0], ours[:, 0], rtol=1e-4)
     for threads in (1, 3):  # the rays split between threads: the same hits

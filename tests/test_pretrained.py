@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import io
 
 import numpy as np
@@ -10,9 +11,15 @@ import torch
 
 from anseg import datasets, pipeline, pretrained
 from anseg.cli import main
+from anseg.experiments import REPO
 from anseg.mesh import save_mesh
 from anseg.pipeline import SegmentConfig, Segmenter, segment
 from anseg.train import TrainConfig, fit
+
+
+spec = importlib.util.spec_from_file_location("publish_models", REPO / "scripts" / "publish_models.py")
+publish_models = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(publish_models)
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +39,7 @@ def shipped(tmp_path, monkeypatch, trained):
     monkeypatch.setattr(pretrained, "MODELS", tmp_path / "pretrained")
     monkeypatch.setattr(pretrained, "INDEX", tmp_path / "pretrained" / "index.json")
     model, result, test_set = trained
-    entry = pretrained.publish(model, "synthetic/figure", result, test_set, "default", out=tmp_path / "pretrained")
+    entry = publish_models.publish(model, "synthetic/figure", result, test_set, "default", out=tmp_path / "pretrained")
     return model, entry, test_set
 
 
@@ -51,7 +58,7 @@ def test_a_published_model_segments_as_the_trained_one(shipped):
 @pytest.mark.parametrize("name", ["../index", "synthetic/../../x", "/etc/passwd", "psb/Nope"])
 def test_a_name_not_in_the_index_never_reaches_the_file_system(shipped, name):
     with pytest.raises(ValueError, match="anseg models"):
-        pretrained.load(name)
+        pretrained.path(name)
     with pytest.raises(ValueError, match="neither a model file nor a pretrained model"):
         pretrained.resolve(name + ".missing")
 
@@ -59,7 +66,7 @@ def test_a_name_not_in_the_index_never_reaches_the_file_system(shipped, name):
 def test_publish_refuses_names_that_are_not_plain(trained, tmp_path):
     model, result, test_set = trained
     with pytest.raises(ValueError, match="model names"):
-        pretrained.publish(model, "../evil", result, test_set[:1], "default", out=tmp_path)
+        publish_models.publish(model, "../evil", result, test_set[:1], "default", out=tmp_path)
 
 
 def test_a_model_trained_on_other_features_is_refused(trained, tmp_path, monkeypatch):

@@ -66,3 +66,17 @@ def test_the_hks_and_the_spectrum_of_one_mesh_share_one_solve(monkeypatch):
     assert len(calls) == 1
     spectral.face_spectrum(blob(3), 8, cache=False)
     assert len(calls) == 2
+
+
+def test_a_large_mesh_takes_its_basis_from_the_proxy_collapse(monkeypatch):
+    from anseg import proxy
+
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)  # distinct axes: the low eigenvalues are simple
+    direct = spectral.face_spectrum(mesh, 6, cache=False)
+    monkeypatch.setattr(proxy, "LARGE_MESH_FACES", 4000)
+    monkeypatch.setattr(proxy, "PROXY_FACES", 1200)
+    through = spectral.face_spectrum(mesh, 6, cache=False)
+    np.testing.assert_allclose(through.values[1:4], direct.values[1:4], rtol=0.05)
+    for k in (1, 2, 3):  # the same vectors up to sign, sampled from the coarse faces
+        assert abs(np.corrcoef(through.basis[:, k], direct.basis[:, k])[0, 1]) > 0.98
