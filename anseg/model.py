@@ -41,7 +41,7 @@ Choices, and why:
   absolute position in the sequence carries no meaning that transfers; it is exposed
   as a parameter to be measured (Fourier features of the normalised position t/(T-1)
   through a learned Linear).
-- **Spatial context on the surface** (both off by default; they read the mesh's
+- **Spatial context on the surface** (all three off by default; they read the mesh's
   Laplacian eigenbasis, :class:`SpectralInput`, which the pipeline carries to coarse
   levels through the collapse records). Tokens are a set of patches: without these
   the network knows what a patch looks like, not where it sits relative to the others.

@@ -83,7 +83,9 @@ class TrainConfig:
     weight averaging at the constant rate): the last epoch's weights still
     move with the step size and the seed. A run of fewer epochs averages all
     of them, so that a short run (a smoke test, the synthetic notebooks) need
-    not change the setting.
+    not change the setting. ``position_pairs``, ``diffusion_blocks`` and
+    ``heat_bias_pairs`` give the network spatial context from the mesh's
+    Laplacian eigenbasis (:mod:`anseg.model`; all off by default).
     """
 
     epochs: int = 60
