@@ -1,0 +1,173 @@
+"""DiffusionNet (Sharp et al. 2022) rerun on this project's PSB data, split and metric.
+
+What it measures: for each PSB category, DiffusionNet is trained on the
+split's training meshes and scored on its test meshes with the project's own
+Eq. 5 (``anseg.metrics.pooled_accuracy``: unit area, the primary figure; raw
+area; plain faces). Data and metric come from ``anseg``; the network, its
+operators and its settings come from the authors' public code, which this
+repository does not copy. The settings are those of their segmentation
+experiment (``experiments/human_segmentation_original``): 16 heat kernel
+signature features (``compute_hks_autoscale``) or xyz positions with random
+rotations, 128 eigenpairs, 4 blocks of width 128 with dropout, outputs
+averaged to the faces, Adam at lr 1e-3 halved every 50 epochs, 200 epochs,
+one mesh per step, the last model scored.
+
+The "DiffusionNet (hks)" reference values in ``anseg/reference.py``
+(``DESIGN_REFERENCE``) were measured this way, one run per category on an
+H100; they are printed beside each result. One run each: a rerun with
+another seed or device is not expected to match them to the last digit. On a
+CPU the 16 categories take many hours (20 meshes per category, 200 epochs).
+
+Usage::
+
+    git clone https://github.com/nmwsharp/diffusion-net
+    pip install robust_laplacian potpourri3d   # what diffusion_net imports beyond torch, scipy, scikit-learn
+    ANSEG_DATA=/path/to/datasets python benchmarks/diffusionnet.py --diffusion-net diffusion-net \\
+        [--category Hand Teddy] [--split 0] [--epochs 200] [--input hks|xyz] [--device auto] [--seed 0] \\
+        [--op-cache DIR] [--json FILE]
+
+Nothing is written into results/; ``--json FILE`` keeps the printed figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from anseg import datasets
+from anseg.metrics import pooled_accuracy
+from anseg.reference import design_reference
+
+# The authors' settings for segmentation (human_segmentation_original.py).
+K_EIG = 128
+N_HKS = 16
+WIDTH, BLOCKS = 128, 4
+LR, DECAY_EVERY, DECAY_RATE = 1e-3, 50, 0.5
+EPOCHS = 200
+
+
+def import_diffusion_net(path: Path):
+    """``diffusion_net`` from a clone of the authors' repository, or a one-line reason why not."""
+    src = path / "src"
+    if not (src / "diffusion_net" / "__init__.py").is_file():
+        sys.exit(f"error: no src/diffusion_net under {path}; clone https://github.com/nmwsharp/diffusion-net and pass its folder")
+    sys.path.insert(0, str(src))
+    try:
+        import diffusion_net
+    except ImportError as error:
+        sys.exit(f"error: cannot import diffusion_net from {src} ({error}); pip install robust_laplacian potpourri3d")
+    return diffusion_net
+
+
+class Prepared:
+    """One mesh as DiffusionNet takes it: its operators, input features and face labels, on the device."""
+
+    def __init__(self, dn, item, args, device):
+        import torch
+
+        verts = dn.geometry.normalize_positions(torch.tensor(item.mesh.vertices, dtype=torch.float32))
+        faces = torch.tensor(item.mesh.faces, dtype=torch.int64)
+        _frames, mass, L, evals, evecs, grad_x, grad_y = dn.geometry.get_operators(
+            verts, faces, k_eig=K_EIG, op_cache_dir=args.op_cache)
+        self.verts, self.faces, self.mass, self.L = verts.to(device), faces.to(device), mass.to(device), L.to(device)
+        self.evals, self.evecs, self.grad_x, self.grad_y = evals.to(device), evecs.to(device), grad_x.to(device), grad_y.to(device)
+        # the HKS depends on the mesh alone: computed once, not at every step as the authors' loop does
+        self.hks = dn.geometry.compute_hks_autoscale(self.evals, self.evecs, N_HKS) if args.input == "hks" else None
+        self.labels = torch.tensor(item.labels, device=device)
+
+    def forward(self, dn, model, rotation=None):
+        """Per-face log-probabilities; ``rotation`` (a numpy RandomState) turns xyz inputs at random."""
+        features = self.hks
+        if features is None:
+            features = self.verts if rotation is None else dn.utils.random_rotate_points(self.verts, rotation)
+        return model(features, self.mass, L=self.L, evals=self.evals, evecs=self.evecs,
+                     gradX=self.grad_x, gradY=self.grad_y, faces=self.faces)
+
+
+def run_category(dn, category: str, args, device) -> dict:
+    """Train on the split's training meshes, score the test meshes; the figures of one category."""
+    import torch
+
+    # reseeded per category, so a category's result does not depend on which ran before it
+    torch.manual_seed(args.seed)
+    rotation = np.random.RandomState(args.seed)
+    start = time.perf_counter()
+    train = [Prepared(dn, item, args, device) for item in datasets.load("psb", category=category, split="train", split_index=args.split, progress=False)]
+    test_items = datasets.load("psb", category=category, split="test", split_index=args.split, progress=False)
+    test = [Prepared(dn, item, args, device) for item in test_items]
+    operator_s = time.perf_counter() - start
+
+    model = dn.layers.DiffusionNet(C_in=N_HKS if args.input == "hks" else 3, C_out=len(test_items[0].label_names),
+                                   C_width=WIDTH, N_block=BLOCKS, outputs_at="faces", dropout=True,
+                                   last_activation=lambda x: torch.nn.functional.log_softmax(x, dim=-1)).to(device)
+    optimizer = torch.optim.Adam(model.parameters(), lr=LR)
+    scheduler = torch.optim.lr_scheduler.StepLR(optimizer, step_size=DECAY_EVERY, gamma=DECAY_RATE)
+    start = time.perf_counter()
+    model.train()
+    for _ in range(args.epochs):
+        for i in torch.randperm(len(train)).tolist():
+            loss = torch.nn.functional.nll_loss(train[i].forward(dn, model, rotation if args.input == "xyz" else None), train[i].labels)
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+        scheduler.step()
+    train_s = time.perf_counter() - start
+
+    model.eval()
+    with torch.no_grad():
+        predicted = [mesh.forward(dn, model).argmax(dim=1).cpu().numpy() for mesh in test]
+    scores = pooled_accuracy(predicted, [item.labels for item in test_items], [item.mesh.face_areas for item in test_items])
+    reference = design_reference(category).get(f"DiffusionNet ({args.input})")
+    return {"category": category, **{key: 100 * value for key, value in scores.items()},
+            "reference": reference, "train_s": train_s, "operator_s": operator_s}
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--diffusion-net", type=Path, required=True, metavar="PATH",
+                        help="a clone of https://github.com/nmwsharp/diffusion-net")
+    parser.add_argument("--category", nargs="+", action="extend", choices=datasets.PSB_CATEGORIES,
+                        help="PSB categories (default: all 16)")
+    parser.add_argument("--split", type=int, default=0, choices=range(datasets.PSB_SPLIT_COUNT))
+    parser.add_argument("--epochs", type=int, default=EPOCHS, help=f"default: {EPOCHS}, the authors' setting")
+    parser.add_argument("--input", default="hks", choices=["hks", "xyz"])
+    parser.add_argument("--device", default="auto", choices=["auto", "cpu", "cuda"])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--op-cache", help="folder where diffusion_net keeps each mesh's operators between runs (default: none)")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
+    args = parser.parse_args(argv)
+
+    dn = import_diffusion_net(args.diffusion_net)
+    import torch
+
+    device = torch.device("cuda" if args.device == "auto" and torch.cuda.is_available() else
+                          "cpu" if args.device == "auto" else args.device)
+    rows = []
+    print(f"DiffusionNet ({args.input}), PSB split {args.split}, {args.epochs} epochs, {device}; Eq. 5 accuracy in %")
+    for category in args.category or datasets.PSB_CATEGORIES:
+        try:
+            row = run_category(dn, category, args, device)
+        except datasets.DatasetError as error:
+            sys.exit(f"error: {error}")
+        rows.append(row)
+        reference = "" if row["reference"] is None else f"  reference {row['reference']:6.2f}"
+        print(f"{category:10s} unit area {row['unit_area']:6.2f}  raw area {row['raw_area']:6.2f}  faces {row['faces']:6.2f}"
+              f"{reference}  train {row['train_s']:7.1f} s  (operators {row['operator_s']:.1f} s)", flush=True)
+
+    mean = float(np.mean([row["unit_area"] for row in rows]))
+    references = [row["reference"] for row in rows]
+    # the reference mean is over the same categories, so it is comparable however many ran
+    reference_mean = None if None in references else float(np.mean(references))
+    print(f"{'mean':10s} unit area {mean:6.2f}" + ("" if reference_mean is None else f"  reference {reference_mean:6.2f}"))
+    if args.json:
+        args.json.write_text(json.dumps({"settings": vars(args), "categories": rows, "mean": mean,
+                                         "reference_mean": reference_mean}, indent=1, default=str))
+
+
+if __name__ == "__main__":
+    main()
