@@ -54,8 +54,10 @@ def test_real_categories_none_means_every_psb_category(tmp_path):
 
     parameters = {**COMMON["real"], **PER_NOTEBOOK["table1_psb.ipynb"]["real"], "output_dir": str(tmp_path)}
     runs = notebook_runs("table1_psb.ipynb", parameters)
-    assert len(runs) == len(datasets.PSB_CATEGORIES) * len(parameters["splits"])
+    # every category on every split, then the paper's method as written on the first split
+    assert len(runs) == len(datasets.PSB_CATEGORIES) * (len(parameters["splits"]) + 1)
     assert runs[0].row == {"category": datasets.PSB_CATEGORIES[0], "split": 0}
+    assert {run.category for run in runs if run.row.get("configuration") == "paper"} == set(datasets.PSB_CATEGORIES)
 
 
 def test_percent():
