@@ -416,15 +416,22 @@ def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentCo
 
 
 def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, groups=None, device="cpu",
-            progress: bool = False) -> Segmentation:
+            progress: bool = False, ensemble: tuple[Segmenter, ...] = ()) -> Segmentation:
     """Segment one mesh with a trained model: Algorithm 1, lines 1-9.
 
     ``config`` defaults to the model's own (the settings it was trained with);
     pass another to change, e.g., the smoothing weight or the mode.
     ``progress`` shows the feature groups' bar on a large mesh.
+    ``ensemble``: more models trained on the same classes and features (other
+    seeds); each builds its own hierarchy, and the class probabilities of all
+    of them are averaged before the graph cut. The levels returned are
+    ``model``'s.
     """
     config = config or model.config
     mesh.validate()
+    for other in ensemble:
+        if other.n_classes != model.n_classes or other.config.groups != model.config.groups:
+            raise ValueError("an ensemble's models must share their classes and feature groups")
     if groups is None:
         groups = features.compute_groups(mesh, config.groups, cache=True, progress=progress)
     levels = build_levels(mesh, model, config, groups, device)
@@ -433,11 +440,13 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
         warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "
                       f"{idle} of them collapsed nothing (the coarsest level has {levels[-1].mesh.n_faces} faces)",
                       collapse.CollapseWarning, stacklevel=2)
-    probs = class_probabilities(model, levels, config, device)
-    for index in range(1, config.passes):  # the test-time ensemble (SegmentConfig.passes)
-        again = replace(config, seed=config.seed + index * PASS_SEED_STEP)
-        probs = probs + class_probabilities(model, build_levels(mesh, model, again, groups, device), again, device)
-    probs = probs / config.passes
+    probs = 0
+    for member in (model, *ensemble):
+        for index in range(config.passes):  # the test-time ensemble (SegmentConfig.passes)
+            again = replace(config, seed=config.seed + index * PASS_SEED_STEP)
+            hierarchy = levels if member is model and index == 0 else build_levels(mesh, member, again, groups, device)
+            probs = probs + class_probabilities(member, hierarchy, again, device)
+    probs = probs / (config.passes * (1 + len(ensemble)))
     raw = probs.argmax(axis=1)
     labels = (graph_cut(mesh, probs, weight=config.smooth_weight, concave_discount=config.concave_discount)
               if config.smooth_weight > 0 else raw)

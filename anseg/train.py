@@ -349,8 +349,12 @@ class _TrainingState:
         return int(payload["epoch"])
 
 
-def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, progress: bool = True) -> dict:
-    """Segment the test meshes and score them (Eq. 5; smoothed and unsmoothed)."""
+def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, progress: bool = True,
+             ensemble: tuple[Segmenter, ...] = ()) -> dict:
+    """Segment the test meshes and score them (Eq. 5; smoothed and unsmoothed).
+
+    ``ensemble``: more models whose probabilities are averaged with ``model``'s (:func:`~anseg.pipeline.segment`).
+    """
     from tqdm.auto import tqdm
 
     config = config or model.config
@@ -358,7 +362,7 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
     groups = level_zero_features(test_set, config, progress=False)
     smoothed, raw, per_mesh = [], [], []
     for item, g in tqdm(list(zip(test_set, groups)), desc="evaluate", disable=not progress):
-        result = segment(item.mesh, model, config, g, device)
+        result = segment(item.mesh, model, config, g, device, ensemble=ensemble)
         smoothed.append(result.labels)
         raw.append(result.unsmoothed_labels)
         areas = item.mesh.face_areas

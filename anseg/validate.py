@@ -2,6 +2,7 @@
 
     python -m anseg.validate --study scale --arm default --arm "relative:local_scale=relative" \\
         [--categories Hand Vase ...] [--folds 3] [--use-folds 0 1 2] [--seeds 0 1] [--workers N | --scheduler ADDRESS]
+        [--ensemble]
 
 The training meshes of one fixed PSB split (split 0 by default) are cut into
 ``folds`` folds (mesh ``i`` of the split's training list goes to fold
@@ -32,6 +33,12 @@ drawn category), and what the arm's training costs: its CPU seconds over the
 baseline's on the cells both trained (a cell records both its wall and its
 CPU time). The decision rule: adopt when the interval excludes 0 and the
 mean is positive.
+
+``--ensemble`` also scores each arm's seeds together, their class
+probabilities averaged (:func:`~anseg.pipeline.segment`'s ``ensemble``), once
+every seed's model of a (category, fold) is stored: how much of a difference
+is seed variance, at k trainings and k segmentations per mesh. Those scores
+go under ``<out>/ensembles`` and ``<out>/<study>_ensemble.csv``.
 """
 
 from __future__ import annotations
@@ -215,6 +222,86 @@ def run_study(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, worke
     return [_named(results[c.key()], c) for c in cells if results[c.key()] is not None]
 
 
+def ensemble_key(cells: list[Cell]) -> str:
+    """The key of an ensemble: a hash of its member cells' keys."""
+    import hashlib
+
+    return hashlib.sha256(" ".join(sorted(c.key() for c in cells)).encode()).hexdigest()[:16]
+
+
+def compute_ensemble(cells: list[Cell], models: list[bytes], root=None) -> dict:
+    """Score one arm's held-out meshes of one category and fold with its seeds' models together.
+
+    The class probabilities of the models (one per cell, same arm, category
+    and fold, other seeds) are averaged before the graph cut: the control
+    that says how much of a difference between arms is seed variance.
+    """
+    import io
+
+    first = cells[0]
+    meshes = load_training_meshes(first, root)
+    held_out = [m for m, f in zip(meshes, fold_of(len(meshes), first.folds)) if f == first.fold]
+    networks = [Segmenter.load(io.BytesIO(model)) for model in models]
+    started = time.time()
+    scores = evaluate(networks[0], held_out, first.configs()[0], progress=False, ensemble=tuple(networks[1:]))
+    return {"key": ensemble_key(cells), "arm": first.arm.name, "category": first.category, "fold": first.fold,
+            "seeds": [c.seed for c in cells], "members": [c.key() for c in cells],
+            "held_out": [m.name for m in held_out], "accuracy": scores["smoothed"],
+            "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
+            "segment_seconds": time.time() - started, "environment": environment()}
+
+
+def run_ensembles(cells: list[Cell], out: str | Path = DEFAULT_OUT, root=None, workers: int = 1,
+                  scheduler: str | None = None, progress: bool = True, backend: str = "dask") -> list[dict]:
+    """Score every (arm, category, fold) of the study with all its seeds' models together; stored under ``<out>/ensembles``.
+
+    A group lacks a score while any of its seeds' models is not stored (said once, on stderr).
+    """
+    from anseg.parallel import run_parallel
+
+    models, store = validation_store(out), ResultStore(out, results="ensembles")
+    groups: dict[tuple[str, str, int], list[Cell]] = {}
+    for cell in cells:
+        groups.setdefault((cell.arm.name, cell.category, cell.fold), []).append(cell)
+    groups = {name: members for name, members in groups.items() if len(members) > 1}
+    ready = {name: members for name, members in groups.items()
+             if all(models.model_path(c.training_key()).is_file() for c in members)}
+    if len(ready) < len(groups):
+        print(f"[anseg] {len(groups) - len(ready)} of {len(groups)} ensembles lack a stored model; not scored",
+              file=sys.stderr)
+    results = {name: store.get(ensemble_key(members)) for name, members in ready.items()}
+    todo = [name for name, result in results.items() if result is None]
+    calls = [(compute_ensemble, (ready[name], [models.model_path(c.training_key()).read_bytes() for c in ready[name]], root))
+             for name in todo]
+    for index, outcome in run_parallel(calls, workers, progress=progress, desc="validate (ensembles)",
+                                       backend=backend, scheduler=scheduler):
+        if isinstance(outcome, Exception):
+            print(f"[anseg] FAILED ensemble {' '.join(map(str, todo[index]))}: {outcome}", file=sys.stderr, flush=True)
+            continue
+        results[todo[index]] = store.put(outcome)
+    return [{**r, "arm": name[0]} for name, r in results.items() if r is not None]
+
+
+def ensemble_comparisons(ensembles: list[dict], results: list[dict], baseline: str) -> list[dict]:
+    """Per arm, its ensemble against the mean of its single models, and against the baseline's single models.
+
+    Paired over the (category, fold) cells, with the same two-stage bootstrap
+    as :func:`paired_difference`.
+    """
+    singles: dict[tuple[str, str, int], list[float]] = {}
+    for (arm, category, fold, _), value in accuracy_table(results).items():
+        singles.setdefault((arm, category, fold), []).append(value)
+    rows = []
+    for arm in sorted({e["arm"] for e in ensembles}):
+        seeds = max(len(e["seeds"]) for e in ensembles if e["arm"] == arm)
+        name = f"{arm} x{seeds}"
+        table = {(name, e["category"], e["fold"], 0): 100 * e["accuracy"]["unit_area"] for e in ensembles if e["arm"] == arm}
+        for against in dict.fromkeys((arm, baseline)):
+            table.update({(against, c, f, 0): float(np.mean(v)) for (a, c, f), v in singles.items() if a == against})
+            rows.append({**paired_difference(table, name, against), "against": f"{against}, one model (seeds averaged)"})
+    return rows
+
+
 def _named(result: dict, cell: Cell) -> dict:
     """A stored result under the arm name of this study: a cell's key holds its settings, not the name it ran under."""
     return {**result, "arm": cell.arm.name}
@@ -350,6 +437,17 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
     return "\n".join(lines)
 
 
+def write_ensemble_report(ensembles: list[dict], results: list[dict], baseline: str, out: str | Path, study: str) -> str:
+    """Write ``<out>/<study>_ensemble.csv`` (:func:`ensemble_comparisons`); return it as text."""
+    rows = ensemble_comparisons(ensembles, results, baseline)
+    text = csv_text(rows)
+    atomic_write(Path(out) / f"{study}_ensemble.csv", lambda tmp: tmp.write_text(text))
+    lines = ["\nseeds together (class probabilities averaged), paired over categories x folds:"]
+    lines += [f"  {r['arm']:<16} against {r['against']:<36} {r['mean']:+6.2f} [{r['low']:+6.2f}, {r['high']:+6.2f}] "
+              f"({r['categories']} categories, {r['cells']} cells)" for r in rows]
+    return "\n".join(lines)
+
+
 def csv_text(rows: list[dict]) -> str:
     """Rows of dicts as CSV text (floats with 4 decimals), the header from the first row."""
     import io
@@ -391,6 +489,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--report-only", action="store_true", help="write the report from the stored cells, train nothing")
     parser.add_argument("--no-train", action="store_true",
                         help="train nothing; score the cells whose model is stored (e.g. graph-cut arms of a stopped study)")
+    parser.add_argument("--ensemble", action="store_true",
+                        help="also score each arm's seeds together (class probabilities averaged; needs their models "
+                             "stored): how much of a difference is seed variance")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
@@ -404,6 +505,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"baseline {baseline!r} is not among the arms")
         if args.workers < 1:
             raise ValueError("--workers must be at least 1")
+        if args.ensemble and len(args.seeds) < 2:
+            raise ValueError("--ensemble needs two seeds or more")
         if args.scheduler and args.backend != "dask":
             raise ValueError("--scheduler needs the dask backend")
         use_folds = args.use_folds if args.use_folds is not None else list(range(args.folds))
@@ -422,6 +525,10 @@ def main(argv: list[str] | None = None) -> int:
         print("no results stored for this study yet", file=sys.stderr)
         return 1
     print(write_report(results, baseline, args.out, args.study))
+    if args.ensemble:
+        ensembles = run_ensembles(cells, args.out, args.data, args.workers, args.scheduler, not args.quiet, args.backend)
+        if ensembles:
+            print(write_ensemble_report(ensembles, results, baseline, args.out, args.study))
     return 0 if len(results) == len(cells) else 1
 
 

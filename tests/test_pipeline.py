@@ -141,6 +141,19 @@ def test_passes_average_the_probabilities_of_segmentations_with_other_seeds(mode
     assert np.array_equal(ensemble.unsmoothed_labels, ensemble.probabilities.argmax(axis=1))
 
 
+def test_an_ensemble_averages_its_models_probabilities(model, shapes):
+    other = fit(shapes[:3], shapes[0].label_names, FAST, TrainConfig(epochs=2, width=32, seed=1), progress=False)
+    mesh = shapes[4].mesh
+    alone = [segment(mesh, m, FAST).probabilities for m in (model, other)]
+    assert not np.allclose(alone[0], alone[1])
+    together = segment(mesh, model, FAST, ensemble=(other,))
+    np.testing.assert_allclose(together.probabilities, (alone[0] + alone[1]) / 2, rtol=1e-12)
+    assert np.array_equal(together.unsmoothed_labels, together.probabilities.argmax(axis=1))
+    with pytest.raises(ValueError, match="share their classes"):
+        segment(mesh, model, FAST, ensemble=(fit(shapes[:3], shapes[0].label_names, replace(FAST, groups=("edge",)),
+                                                 TrainConfig(epochs=1, width=32), progress=False),))
+
+
 def test_every_level_gets_labels_and_attention(model, shapes):
     from anseg.pipeline import fill_attention, level_labels
 

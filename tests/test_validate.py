@@ -140,6 +140,23 @@ def test_a_study_stores_its_cells_and_resumes_without_training(tmp_path, monkeyp
     assert validate.run_study(seed_one, tmp_path, progress=False, train=False) == [] and len(fits) == 1
 
 
+@pytest.mark.slow
+def test_an_ensemble_scores_the_seeds_models_together_and_is_stored(tmp_path):
+    torch.set_num_threads(1)
+    cells = validate.study_cells([Arm("default", SMALL)], ["figure"], folds=2, use_folds=[0], seeds=[0, 1], epochs=2,
+                                 **SYNTHETIC)
+    assert validate.run_ensembles(cells, tmp_path, progress=False) == []  # no model stored yet: nothing scored
+    results = validate.run_study(cells, tmp_path, progress=False)
+    (ensemble,) = validate.run_ensembles(cells, tmp_path, progress=False)
+    assert ensemble["seeds"] == [0, 1] and ensemble["held_out"] == results[0]["held_out"]
+    assert (tmp_path / "ensembles" / f"{ensemble['key']}.json").is_file()
+    assert validate.run_ensembles(cells, tmp_path, progress=False) == [ensemble]  # read back, not recomputed
+    (alone,) = validate.ensemble_comparisons([ensemble], results, "default")  # the baseline itself: one row
+    singles = np.mean([100 * r["accuracy"]["unit_area"] for r in results])
+    assert alone["arm"] == "default x2" and alone["cells"] == 1
+    assert alone["mean"] == pytest.approx(100 * ensemble["accuracy"]["unit_area"] - singles)
+
+
 def test_cli_refuses_bad_arms_in_one_line(capsys):
     with pytest.raises(SystemExit) as stop:
         validate.main(["--study", "x", "--arm", "a:train.width=wide"])
@@ -150,6 +167,9 @@ def test_cli_refuses_bad_arms_in_one_line(capsys):
     with pytest.raises(SystemExit):
         validate.main(["--study", "x", "--arm", "a", "--backend", "loky", "--scheduler", "tcp://host:8786"])
     assert "needs the dask backend" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        validate.main(["--study", "x", "--arm", "a", "--seeds", "0", "--ensemble"])
+    assert "two seeds" in capsys.readouterr().err
 
 
 @pytest.mark.realdata
