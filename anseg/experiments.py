@@ -85,7 +85,7 @@ class Experiment:
 
 
 def environment() -> dict:
-    """Versions, hardware, the code revision and the date (UTC), recorded beside every result."""
+    """Versions, hardware (and the torch threads a replay needs), the code revision and the date (UTC), kept with every result."""
     from datetime import datetime, timezone
 
     import sklearn
@@ -95,7 +95,8 @@ def environment() -> dict:
         "python": platform.python_version(), "torch": torch.__version__, "numpy": np.__version__,
         "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
-        "cpus": os.cpu_count(), "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+        "cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
+        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
         **code_revision(), "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
 
@@ -185,7 +186,8 @@ def train_and_evaluate(experiment: Experiment, dataset_options: dict | None = No
     scores = evaluate(model, test_set, progress=progress)
     result = {
         "key": experiment.key(dataset_options), "dataset": experiment.dataset, "category": experiment.category,
-        "split_index": experiment.split_index, "segment": asdict(experiment.segment), "train": asdict(experiment.train),
+        "split_index": experiment.split_index, "dataset_options": dataset_options,
+        "segment": asdict(experiment.segment), "train": asdict(experiment.train),
         "n_train": len(train_set), "n_test": len(test_set), "label_names": label_names,
         "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
         "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds, "evaluate_seconds": time.time() - started,

@@ -1,0 +1,127 @@
+"""Replay one stored run: retrain it from the code revision it recorded and compare the accuracy to the last digit.
+
+    python scripts/replay_run.py results/runs/<key>.json [--data DIR] [--keep]
+
+The run's recorded revision is checked out into a temporary git worktree and
+the experiment (the recorded data set, category, split and settings) is
+trained and evaluated there, in a fresh process with the recorded number of
+torch threads (one when the record predates that field), against the same
+Python environment. The replay holds when the new run has the same key and
+the same accuracy (Eq. 5, unit area, and raw area and per face) as the
+stored one, float for float; exit status 0 then, 1 when it differs, 2 when
+the run cannot be replayed here (no revision recorded, uncommitted changes
+at training time, trained on a GPU, or the revision is not in this clone).
+
+Replay needs the package's dependencies at the versions the record names;
+where they differ, it says so before training, since torch's kernels may
+round differently from one version to the next.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+# runs in the worktree: the recorded experiment, trained and evaluated by the code of that revision
+RETRAIN = """
+import json, sys
+import torch
+from anseg.experiments import Experiment, train_and_evaluate
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig
+run = json.load(sys.stdin)
+torch.set_num_threads(run["threads"])
+experiment = Experiment(run["dataset"], run["category"], run["split_index"], SegmentConfig(**run["segment"]),
+                        TrainConfig(**run["train"]))
+result, _ = train_and_evaluate(experiment, run["dataset_options"], run["root"])
+print(json.dumps({"key": result["key"], "accuracy": result["accuracy"], "train_seconds": result["train_seconds"]}))
+"""
+
+
+def why_not(run: dict) -> str | None:
+    """Why the stored ``run`` cannot be replayed on this machine, or None."""
+    env = run.get("environment", {})
+    if not env.get("code_revision"):
+        return "the run records no code revision"
+    if env.get("code_clean") is not True:
+        return f"the run was trained with uncommitted changes on top of {env['code_revision'][:12]}"
+    if env.get("cuda"):
+        return f"the run was trained on a GPU ({env['cuda']}); a CPU run does not round the same way"
+    return None
+
+
+def version_differences(env: dict) -> list[str]:
+    """The recorded library versions that differ from this environment's."""
+    import numpy
+    import sklearn
+    import torch
+    import trimesh
+
+    here = {"torch": torch.__version__, "numpy": numpy.__version__, "trimesh": trimesh.__version__,
+            "scikit-learn": sklearn.__version__}
+    return [f"{name} {env[name]} recorded, {version} here" for name, version in here.items()
+            if env.get(name) not in (None, version)]
+
+
+def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
+    """Retrain ``run`` at its recorded revision; the new run's key, accuracy and training seconds."""
+    revision = run["environment"]["code_revision"]
+    worktree = Path(tempfile.mkdtemp(prefix="anseg-replay-")) / "tree"
+    added = subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(worktree), revision],
+                           capture_output=True, text=True)
+    if added.returncode != 0:
+        raise LookupError(f"revision {revision[:12]} cannot be checked out here: {added.stderr.strip()}")
+    try:
+        threads = run["environment"].get("torch_threads", 1)
+        job = {**{k: run[k] for k in ("dataset", "category", "split_index", "segment", "train")},
+               "dataset_options": run.get("dataset_options", {}), "root": root, "threads": threads}
+        environment = {**os.environ, "PYTHONPATH": str(worktree), "OMP_NUM_THREADS": str(threads)}
+        done = subprocess.run([sys.executable, "-c", RETRAIN], input=json.dumps(job), cwd=worktree, env=environment,
+                              capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"the replay failed at {revision[:12]}: {done.stderr.strip().splitlines()[-1]}")
+        return json.loads(done.stdout.strip().splitlines()[-1])
+    finally:
+        if not keep:
+            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(worktree)], capture_output=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("result", type=Path, help="a stored result, results/runs/<key>.json")
+    parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
+    parser.add_argument("--keep", action="store_true", help="keep the worktree of the recorded revision")
+    args = parser.parse_args(argv)
+    try:
+        run = json.loads(args.result.read_text())
+    except (OSError, ValueError) as exc:
+        print(f"replay_run: cannot read {args.result}: {exc}", file=sys.stderr)
+        return 2
+    if reason := why_not(run):
+        print(f"replay_run: cannot replay {args.result.name}: {reason}", file=sys.stderr)
+        return 2
+    for difference in version_differences(run["environment"]):
+        print(f"replay_run: warning: {difference}", file=sys.stderr)
+    try:
+        again = replay(run, args.data, args.keep)
+    except (LookupError, RuntimeError) as exc:
+        print(f"replay_run: {exc}", file=sys.stderr)
+        return 2
+    same = again["key"] == run["key"] and again["accuracy"] == run["accuracy"]
+    print(f"{run['dataset']} {run['category']} split {run['split_index']} at {run['environment']['code_revision'][:12]}")
+    for metric, value in run["accuracy"].items():
+        print(f"  {metric:<10} stored {value!r:<22} replayed {again['accuracy'].get(metric)!r}")
+    print(f"  training: stored {run['train_seconds']:.0f} s, replayed {again['train_seconds']:.0f} s")
+    print("replay holds" if same else ("replay DIFFERS" + ("" if again["key"] == run["key"] else " (another key)")))
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,54 @@
+"""scripts/replay_run.py: a stored run retrained from its recorded revision gives the same accuracy, or says why not."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+
+import pytest
+import torch
+
+from anseg.experiments import REPO, Experiment, code_revision, train_and_evaluate
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig
+
+spec = importlib.util.spec_from_file_location("replay_run", REPO / "scripts" / "replay_run.py")
+replay_run = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(replay_run)
+
+
+def _record(**environment):
+    return {"key": "k", "dataset": "synthetic", "category": "figure", "split_index": 0,
+            "environment": {"code_revision": "a" * 40, "code_clean": True, "cuda": None, **environment}}
+
+
+def test_a_run_that_cannot_be_replayed_says_why_in_one_line(tmp_path, capsys):
+    assert replay_run.why_not(_record()) is None
+    assert "no code revision" in replay_run.why_not(_record(code_revision=None))
+    assert "uncommitted changes" in replay_run.why_not(_record(code_clean=False))
+    assert "GPU" in replay_run.why_not(_record(cuda="NVIDIA H100"))
+    path = tmp_path / "run.json"
+    path.write_text(json.dumps(_record(code_clean=None)))
+    assert replay_run.main([str(path)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+    assert replay_run.main([str(tmp_path / "absent.json")]) == 2
+    path.write_text(json.dumps(_record(code_revision="f" * 40)))  # a revision this clone does not have
+    assert replay_run.main([str(path)]) == 2
+    assert "cannot be checked out" in capsys.readouterr().err
+
+
+def test_versions_that_differ_are_named():
+    assert replay_run.version_differences({"torch": "0.0.1", "numpy": None}) == [f"torch 0.0.1 recorded, {torch.__version__} here"]
+
+
+@pytest.mark.slow
+def test_a_run_replays_to_the_last_digit_at_its_revision(tmp_path, capsys):
+    if code_revision()["code_clean"] is not True:
+        pytest.skip("the package has uncommitted changes: a run trained now records no revision to replay")
+    torch.set_num_threads(1)
+    experiment = Experiment("synthetic", "figure", 0, SegmentConfig(cycles=2, clusters=4), TrainConfig(epochs=2, width=32))
+    result, _ = train_and_evaluate(experiment, {"n_shapes": 6})
+    path = tmp_path / "run.json"
+    path.write_text(json.dumps(result))
+    assert replay_run.main([str(path)]) == 0, capsys.readouterr()
+    assert "replay holds" in capsys.readouterr().out
