@@ -52,6 +52,8 @@ def panels(result, n_classes: int) -> list[tuple[int, int, Mesh, np.ndarray]]:
 
 
 COLOURINGS = ("labels", "attention", "confidence")
+WIDGET_KEY = ("Level 0 is the input mesh, each higher level a coarser one. Attention: log scale, bright is high. "
+              "Confidence (input mesh only): the winning class's probability, dark is low. Drag to turn, scroll to zoom.")
 
 
 def explore(result, label_names, jupyter_backend: str = "trame"):
@@ -88,7 +90,8 @@ def explore(result, label_names, jupyter_backend: str = "trame"):
     view = plotter.show(jupyter_backend=jupyter_backend, return_viewer=True)
     slider.observe(show, names="value")
     choice.observe(show, names="value")
-    legend = ipywidgets.HTML(_legend(label_names, result.labels, len(result.levels), "labels"))
+    legend = ipywidgets.HTML(f'<div style="font:13px sans-serif;max-width:22em">{_swatches(label_names, result.labels)}'
+                             f'<p style="margin:.5em 0 0">{WIDGET_KEY}</p></div>')
     box = ipywidgets.VBox([ipywidgets.HBox([slider, choice]), ipywidgets.HBox([legend, view])
                            if isinstance(view, ipywidgets.Widget) else legend])
     box.plotter = plotter  # for callers that update or close it
@@ -146,15 +149,20 @@ def _unit(mesh: Mesh) -> Mesh:
     return Mesh((mesh.vertices - (low + high) / 2) / size, mesh.faces)
 
 
-def _legend(label_names, labels, n_levels: int, title: str) -> str:
+def _swatches(label_names, labels) -> str:
+    """One line per label: its colour, its name (as text) and how many input faces it got."""
     counts = np.bincount(labels, minlength=len(label_names))
-    swatches = "".join(
+    return "".join(
         f'<div><span style="display:inline-block;width:1em;height:1em;margin-right:.4em;vertical-align:middle;'
         f'background:rgb({r},{g},{b})"></span>{html.escape(str(name))} ({count} faces)</div>'
         for name, (r, g, b), count in zip(label_names, palette(len(label_names)), counts))
+
+
+def _legend(label_names, labels, n_levels: int, title: str) -> str:
+    """The page's legend: a box pinned to its top left corner, with the key to its rows of panels."""
     key = (f"Top row, left to right: the labels on the input mesh and on each of the {n_levels - 1} coarser levels, "
            "then the confidence (the winning class's probability; dark is low). Bottom row: each level's attention "
            "(log scale; bright is high). Drag to turn, scroll to zoom.")
     return (f'<div id="anseg-legend" style="position:fixed;top:8px;left:8px;z-index:1000;background:rgba(255,255,255,.9);'
             f'padding:8px 12px;font:13px sans-serif;max-width:24em;border-radius:4px">'
-            f"<b>{html.escape(title)}</b>{swatches}<p style=\"margin:.5em 0 0\">{key}</p></div>")
+            f"<b>{html.escape(title)}</b>{_swatches(label_names, labels)}<p style=\"margin:.5em 0 0\">{key}</p></div>")
