@@ -160,3 +160,41 @@ def test_train_segment_evaluate(tmp_path, monkeypatch):
     monkeypatch.setattr(np, "savetxt", interrupted)
     assert main(["segment", str(model), str(mesh_path), "-o", str(tmp_path / "cut.ply")]) == 130
     assert not (tmp_path / "cut.txt").exists() and not list(tmp_path.glob(".cut*"))
+
+
+@pytest.mark.slow
+def test_a_users_scan_and_cad_part_segment_with_a_view(tmp_path):
+    """Meshes from no benchmark: a scan with holes as binary STL, a CAD part as GLB with a stray far vertex.
+
+    Each goes through ``segment --model FILE --repair --html``: one label per input face, the same labels as
+    the same faces given as OFF (the format and the stray vertex change nothing), and a page with its legend.
+    """
+    import torch
+    import trimesh
+
+    from anseg import datasets
+    from anseg.mesh import Mesh
+    from anseg.pipeline import SegmentConfig
+    from anseg.train import TrainConfig, fit
+
+    torch.set_num_threads(1)
+    shapes = datasets.load("synthetic", category="vessel", split="all", n_shapes=5, progress=False)
+    model = tmp_path / "vessel.pt"
+    fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=1, clusters=4), TrainConfig(epochs=1, width=16),
+        progress=False).save(model)
+    mesh = shapes[4].mesh
+    holed = Mesh(mesh.vertices, np.delete(mesh.faces, [0, mesh.n_faces // 2, mesh.n_faces - 1], axis=0))
+    trimesh.Trimesh(holed.vertices, holed.faces, process=False).export(tmp_path / "scan.stl", file_type="stl")
+    trimesh.Trimesh(np.vstack([mesh.vertices, [[1e9, 1e9, 1e9]]]), mesh.faces, process=False).export(tmp_path / "part.glb")
+    for name, same_faces in (("scan.stl", holed), ("part.glb", mesh)):
+        stem = name.split(".")[0]
+        save_mesh(tmp_path / f"{stem}.off", same_faces)
+        for source in (name, f"{stem}.off"):
+            result = run_cli("segment", "--model", model, tmp_path / source, "--repair", "--html",
+                             tmp_path / f"{source}.html", "-o", tmp_path / f"{source}.ply")
+            assert result.returncode == 0, result.stderr
+        labels = np.loadtxt(tmp_path / f"{name}.txt", dtype=int)
+        assert labels.shape == (same_faces.n_faces,)
+        assert np.array_equal(labels, np.loadtxt(tmp_path / f"{stem}.off.txt", dtype=int))
+        page = (tmp_path / f"{name}.html").read_text()
+        assert "anseg-legend" in page and all(n in page for n in shapes[0].label_names)
