@@ -436,34 +436,6 @@ def test_real_meshes_give_finite_features(psb_sample):
         assert np.isfinite(x).all(), category
 
 
-# -------------------------------------------------------------- ray casting
-def test_ray_caster_finds_the_same_first_hits_as_libigl():
-    import igl
-
-    mesh = blob()
-    rng = np.random.default_rng(1)
-    origins = rng.uniform(-0.5, 0.5, size=(2000, 3)) * [1.6, 1.0, 0.7]
-    directions = rng.standard_normal((2000, 3))
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    face, t = features._first_hits(features._build_bvh(mesh.vertices, mesh.faces), origins, directions)
-    tree = igl.AABB()
-    tree.init(mesh.vertices, mesh.faces)
-    ref_face, ref_t, _ = tree.intersect_ray_first(mesh.vertices, mesh.faces, origins, directions)
-    assert (face >= 0).all() and (ref_face >= 0).all()  # every origin is inside the closed blob
-    assert (face == ref_face).mean() > 0.999
-    np.testing.assert_allclose(t[face == ref_face], ref_t[face == ref_face], rtol=1e-6)  # libigl keeps t in float32
-
-
-def test_ray_caster_on_a_single_triangle():
-    bvh = features._build_bvh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
-    origins = np.array([[0.2, 0.2, 1.0], [0.2, 0.2, -2.0], [0.9, 0.9, 1.0], [0.2, 0.2, 1.0]])
-    directions = np.array([[0.0, 0, -1], [0, 0, 1], [0, 0, -1], [0, 0, 1]])
-    face, t = features._first_hits(bvh, origins, directions)
-    np.testing.assert_array_equal(face, [0, 0, -1, -1])
-    np.testing.assert_allclose(t[:2], [1.0, 2.0])
-    assert np.isinf(t[2:]).all()
-
-
 def test_sdf_of_a_large_mesh_through_embree_matches_our_ray_caster(monkeypatch):
     mesh = blob()
     ours = features.compute_groups(mesh, ["sdf"], **FAST)["sdf"]
