@@ -40,7 +40,7 @@ from anseg import datasets
 from anseg.collapse import CollapseWarning, compose, rings_to_other_label
 from anseg.configs import parse_overrides
 from anseg.pipeline import Segmenter, build_levels, level_labels
-from anseg.validate import csv_text
+from anseg.comparison import csv_text
 
 GIANT_FACTOR = 8
 BAND_RINGS = 2

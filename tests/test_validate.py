@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 import torch
 
-from anseg import validate
+from anseg import comparison, validate
 from anseg.configs import parse_overrides
 from anseg.experiments import Experiment
 from anseg.pipeline import SegmentConfig
-from anseg.validate import Arm, Cell, fold_of, paired_difference
+from anseg.comparison import paired_difference
+from anseg.validate import Arm, Cell, fold_of
 
 SMALL = {"cycles": 2, "clusters": 4}
 SYNTHETIC = dict(dataset="synthetic", options=(("n_shapes", 8),))
@@ -78,14 +79,14 @@ def test_paired_difference_and_its_interval():
 def test_report_names_the_verdict(tmp_path):
     results = [{"arm": arm, "category": cat, "fold": f, "seed": 0, "accuracy": {"unit_area": (70 + bonus + f) / 100}}
                for arm, bonus in (("default", 0), ("better", 3)) for cat in ("A", "B") for f in range(3)]
-    text = validate.write_report(results, "default", tmp_path, "demo")
+    text = comparison.write_report(results, "default", tmp_path, "demo")
     assert "better" in text and "no verdict on fewer than 3 categories" in text and "one seed" in text
     rows = (tmp_path / "demo_accuracy.csv").read_text().splitlines()
     assert rows[0] == "arm,category,mean,std,runs"
     assert "default,suite mean,71.0000,1.0000,6" in rows  # folds score 70, 71, 72: mean 71, spread 1
     assert (tmp_path / "demo_paired.csv").is_file()
     more = [{**r, "category": f"{r['category']}{k}"} for r in results for k in range(2)]  # 4 categories
-    assert "adopt" in validate.write_report(more, "default", tmp_path, "demo4")
+    assert "adopt" in comparison.write_report(more, "default", tmp_path, "demo4")
 
 
 def test_training_cost_compares_cpu_seconds_on_the_cells_both_trained(tmp_path):
@@ -96,11 +97,11 @@ def test_training_cost_compares_cpu_seconds_on_the_cells_both_trained(tmp_path):
     results = [result("default", "A", 100.0), result("default", "B", 300.0), result("cheap", "A", 30.0),
                result("cheap", "B", 90.0), result("cheap", "C", 5.0),  # C: no baseline cell, left out
                result("cut", "A", 1.0, trained=False)]  # scored with a stored model: no training to count
-    assert validate.training_cost(results, "cheap", "default") == pytest.approx(0.3)
-    assert np.isnan(validate.training_cost(results, "cut", "default"))
+    assert comparison.training_cost(results, "cheap", "default") == pytest.approx(0.3)
+    assert np.isnan(comparison.training_cost(results, "cut", "default"))
     older = [{k: v for k, v in r.items() if k != "train_cpu_seconds"} for r in results]  # stored before CPU time was
-    assert np.isnan(validate.training_cost(older, "cheap", "default"))
-    text = validate.write_report(results, "default", tmp_path, "cost")
+    assert np.isnan(comparison.training_cost(older, "cheap", "default"))
+    text = comparison.write_report(results, "default", tmp_path, "cost")
     assert "training costs 0.30x the baseline's CPU time" in text
     assert (tmp_path / "cost_paired.csv").read_text().splitlines()[0].endswith(",cost")
 
@@ -111,13 +112,13 @@ def test_seed_spread_reads_each_cell_across_its_seeds(tmp_path):
     results = [{"arm": "default", "category": c, "fold": f, "seed": s, "accuracy": {"unit_area": v[s] / 100}}
                for (c, f), v in values.items() for s in (0, 1)]
     results.append({"arm": "default", "category": "B", "fold": 1, "seed": 0, "accuracy": {"unit_area": 0.1}})  # one seed: left out
-    (row,) = validate.seed_spread(validate.accuracy_table(results))
+    (row,) = comparison.seed_spread(comparison.accuracy_table(results))
     assert row["cells"] == 3 and row["seeds"] == 2
     assert row["median_range"] == pytest.approx(2.0) and row["max_range"] == pytest.approx(4.0)
     assert row["suite_mean_range"] == pytest.approx(1.5)  # A: 75 then 78, B: 77 then 77 -> 76.0 and 77.5
-    text = validate.write_report(results, "default", tmp_path, "seeds")
+    text = comparison.write_report(results, "default", tmp_path, "seeds")
     assert "from seed to seed" in text and (tmp_path / "seeds_seeds.csv").is_file()
-    assert validate.seed_spread(validate.accuracy_table([r for r in results if r["seed"] == 0])) == []
+    assert comparison.seed_spread(comparison.accuracy_table([r for r in results if r["seed"] == 0])) == []
 
 
 @pytest.mark.slow
@@ -151,7 +152,7 @@ def test_an_ensemble_scores_the_seeds_models_together_and_is_stored(tmp_path):
     assert ensemble["seeds"] == [0, 1] and ensemble["held_out"] == results[0]["held_out"]
     assert (tmp_path / "ensembles" / f"{ensemble['key']}.json").is_file()
     assert validate.run_ensembles(cells, tmp_path, progress=False) == [ensemble]  # read back, not recomputed
-    (alone,) = validate.ensemble_comparisons([ensemble], results, "default")  # the baseline itself: one row
+    (alone,) = comparison.ensemble_comparisons([ensemble], results, "default")  # the baseline itself: one row
     singles = np.mean([100 * r["accuracy"]["unit_area"] for r in results])
     assert alone["arm"] == "default x2" and alone["cells"] == 1
     assert alone["mean"] == pytest.approx(100 * ensemble["accuracy"]["unit_area"] - singles)
