@@ -1,4 +1,4 @@
-"""K-means face clusters and the cluster-ordered patch sequence (section III-A; DESIGN step 2).
+"""K-means face clusters and the cluster-ordered patch sequence (section III-A).
 
 A unit turns a mesh into transformer tokens in three steps:
 

@@ -13,7 +13,7 @@ averaged to the faces, Adam at lr 1e-3 halved every 50 epochs, 200 epochs,
 one mesh per step, the last model scored.
 
 The "DiffusionNet (hks)" reference values in ``anseg/reference.py``
-(``DESIGN_REFERENCE``) were measured this way, one run per category on an
+(``MEASURED_ON_OUR_DATA``) were measured this way, one run per category on an
 H100; they are printed beside each result. One run each: a rerun with
 another seed or device is not expected to match them to the last digit. On a
 CPU the 16 categories take many hours (20 meshes per category, 200 epochs).
@@ -41,7 +41,7 @@ import numpy as np
 
 from anseg import datasets
 from anseg.metrics import pooled_accuracy
-from anseg.reference import design_reference
+from anseg.reference import measured_on_our_data
 
 # The authors' settings for segmentation (human_segmentation_original.py).
 K_EIG = 128
@@ -122,7 +122,7 @@ def run_category(dn, category: str, args, device) -> dict:
     with torch.no_grad():
         predicted = [mesh.forward(dn, model).argmax(dim=1).cpu().numpy() for mesh in test]
     scores = pooled_accuracy(predicted, [item.labels for item in test_items], [item.mesh.face_areas for item in test_items])
-    reference = design_reference(category).get(f"DiffusionNet ({args.input})")
+    reference = measured_on_our_data(category).get(f"DiffusionNet ({args.input})")
     return {"category": category, **{key: 100 * value for key, value in scores.items()},
             "reference": reference, "train_s": train_s, "operator_s": operator_s}
 

@@ -17,7 +17,6 @@ a transport format for our own runs, not a way to redistribute the data.
 from __future__ import annotations
 
 import io
-import lzma
 import sys
 import tarfile
 from pathlib import Path

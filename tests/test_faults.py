@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from anseg import cache, datasets, features
+from anseg import cache, datasets
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig, fit
 

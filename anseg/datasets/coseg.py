@@ -22,8 +22,6 @@ import random
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
 from anseg.datasets.common import DatasetError, LabeledMesh, labeled_mesh, natural_key, progress_bar, read_integer_column, read_mesh
 from anseg.datasets.archive import dataset_folder
 
