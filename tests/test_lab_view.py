@@ -157,11 +157,21 @@ def _colour_hits(picture: np.ndarray, box: dict, colours: np.ndarray) -> list[in
     return [int((np.abs(pixels - colour).sum(axis=1) < 60).sum()) for colour in colours]
 
 
-def _screenshot_when(browser: Browser, test, seconds: float, what: str) -> np.ndarray:
-    """The first screenshot that passes ``test``, taken every half second."""
-    found = []
-    _wait(lambda: test(picture := browser.screenshot()) and not found.append(picture), seconds, what)
-    return found[0]
+def _screenshot_when(browser: Browser, test, seconds: float, what: str, folder: Path) -> np.ndarray:
+    """The first screenshot that passes ``test``, taken every half second; on a timeout the last one is kept."""
+    taken = []
+
+    def passes():
+        taken[:] = [browser.screenshot()]
+        return test(taken[0])
+
+    try:
+        _wait(passes, seconds, what)
+    except AssertionError as error:
+        if not taken:
+            raise
+        raise AssertionError(f"{error}; the last screenshot: {_keep('lab_timeout.png', taken[0], folder)}") from None
+    return taken[0]
 
 
 def test_the_view_turns_in_jupyterlab_and_follows_its_controls(lab):
@@ -180,15 +190,15 @@ def test_the_view_turns_in_jupyterlab_and_follows_its_controls(lab):
                 " return f && f.getBoundingClientRect().width > 100 ? f.getBoundingClientRect().toJSON() : null; })()")
         box = _wait(lambda: browser.js(view), 300, "the view's frame in the output")
         used = palette(len(names))[np.unique(labels)]
-        drawn = _screenshot_when(browser, lambda picture: max(_colour_hits(picture, box, used)) > 500, 120,
-                                 "the mesh drawn in its label colours")
+        drawn = _screenshot_when(browser, lambda picture: max(_colour_hits(picture, box, used)) > 500, 300,
+                                 "the mesh drawn in its label colours", folder)
         before = sum(_colour_hits(drawn, box, used))
         _keep("lab_labels.png", drawn, folder)
         legend = browser.js("document.querySelector('.jp-OutputArea').innerText")
         assert all(name in legend for name in names) and "Level 0 is the input mesh" in legend
         browser.js("window.jupyterapp.commands.execute('notebook:run-cell'); true")  # coarsest level, attention
-        switched = _screenshot_when(browser, lambda picture: sum(_colour_hits(picture, box, used)) < before / 5, 120,
-                                    "the view to leave the label colours for the attention")
+        switched = _screenshot_when(browser, lambda picture: sum(_colour_hits(picture, box, used)) < before / 5, 300,
+                                    "the view to leave the label colours for the attention", folder)
         _keep("lab_attention.png", switched, folder)
         x, y, w, h = (int(box[k]) for k in ("x", "y", "width", "height"))
         assert switched[y:y + h, x:x + w].std() > 10, "a blank view after the switch"
