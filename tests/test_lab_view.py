@@ -167,9 +167,7 @@ def _screenshot_when(browser: Browser, test, seconds: float, what: str, folder: 
 
     try:
         _wait(passes, seconds, what)
-    except AssertionError as error:
-        if not taken:
-            raise
+    except AssertionError as error:  # _wait checks at least once, so a screenshot was taken
         raise AssertionError(f"{error}; the last screenshot: {_keep('lab_timeout.png', taken[0], folder)}") from None
     return taken[0]
 
