@@ -4,7 +4,7 @@
 
 Takes, for every run of those notebooks' real plan under ``--config``, the
 stored result (``results/runs/<key>.json``) and its model
-(``results/models/<key>.pt``), and writes it with its model card into
+(``models/<key>.pt``), and writes it with its model card into
 ``anseg/pretrained/`` (:func:`publish`: float16 where that changes no test
 label). Trains nothing: a run whose result or model is not
 here is listed and left out. The test meshes are read only to check the
@@ -26,7 +26,9 @@ from anseg.experiments import REPO, ResultStore, notebook_parameters, notebook_r
 from anseg.pipeline import Segmenter, feature_code, segment
 
 # which notebook runs become which shipped names
-SOURCES = {"table1_psb.ipynb": lambda run: f"psb/{run.category}" if run.split == 0 else None,
+# (Table I's split 0 also holds the plain reading's runs: those are not the configuration shipped)
+SOURCES = {"table1_psb.ipynb": lambda run: f"psb/{run.category}" if run.split == 0 and "configuration" not in run.row
+           else None,
            "table3_human.ipynb": lambda run: "human_seg",
            "table2_coseg.ipynb": lambda run: run.dataset if run.category is None else None}
 

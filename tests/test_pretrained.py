@@ -96,3 +96,16 @@ def test_cli_lists_and_segments_with_a_pretrained_model(shipped, tmp_path, capsy
     assert main(["segment", "--model", "psb/Nope", str(mesh_path)]) == 2
     assert "anseg models" in capsys.readouterr().err
     assert main(["segment", str(mesh_path)]) == 2  # neither a model file nor --model
+
+
+def test_each_shipped_name_comes_from_one_run_of_the_shipped_configuration():
+    from anseg.experiments import notebook_parameters, notebook_runs
+
+    for notebook, name_of in publish_models.SOURCES.items():
+        p = {**notebook_parameters(notebook, "real"), "config": "default"}
+        runs = [run for run in notebook_runs(notebook, p) if name_of(run) is not None]
+        names = [name_of(run) for run in runs]
+        assert runs and len(set(names)) == len(names), notebook
+        assert all("configuration" not in run.row for run in runs), notebook  # never the plain reading's runs
+    assert "psb/Human" in {publish_models.SOURCES["table1_psb.ipynb"](run) for run in notebook_runs(
+        "table1_psb.ipynb", notebook_parameters("table1_psb.ipynb", "real"))}
