@@ -83,18 +83,31 @@ class NotebookRun:
         experiment, options = planned_experiment(run, {**self.parameters, "config": config})
         return self.store.get(experiment.key(options))
 
+    def model_file(self, result: dict):
+        """The model file of a result: the store's, else the shipped pretrained model trained in that run, else None.
+
+        A result store travels without its models; the shipped models are
+        those of the runs Tables I-III read (float16 where that changes no
+        test label).
+        """
+        from anseg import pretrained
+
+        local = self.store.model_path(result["key"])
+        return local if local.is_file() else pretrained.of_run(result["key"])
+
     def has_model(self, result: dict) -> bool:
-        """Whether the model of a result is on this machine (a result store can travel without its models)."""
-        return self.store.model_path(result["key"]).is_file()
+        """Whether the model of a result is on this machine or shipped with the package."""
+        return self.model_file(result) is not None
 
     def load_model(self, result: dict) -> Segmenter:
         """The model trained for ``result``, on the CPU (enough to segment a few meshes)."""
-        if not self.has_model(result):
+        path = self.model_file(result)
+        if path is None:
             raise FileNotFoundError(
                 f"the model of run {result['key']} is not on this machine (a result store travels without its models): "
                 f"copy it to {self.store.model_path(result['key'])}, or delete {self.store.result_path(result['key'])} "
                 "to train it here")
-        return Segmenter.load(self.store.model_path(result["key"]))
+        return Segmenter.load(path)
 
     def test_meshes(self, dataset: str, category: str | None, split: int = 0) -> list:
         from anseg import datasets

@@ -5,7 +5,8 @@ live in ``anseg/pretrained/`` beside ``index.json``, which maps every name
 (``psb/Human``, ``human_seg``, ``coseg_aliens``, ...) to its file and its
 card: the data and split it was trained on, the configuration with every
 setting, its accuracy on the split's test meshes, the code revision, the
-machine and the date. Weights are stored in float16 only where that
+machine, the date and the stored run it comes from (so the notebooks that
+render a run's output use it where the run's own model file is absent). Weights are stored in float16 only where that
 changes no label of those test meshes (the card says which).
 
 A name is looked up in the index and nothing else: the file a name leads to
@@ -48,6 +49,14 @@ def card(name: str) -> dict:
 def path(name: str) -> Path:
     """The file of the shipped model ``name``: taken from the index, never built from the name."""
     return MODELS / Path(card(name)["file"]).name
+
+
+def of_run(key: str) -> Path | None:
+    """The file of the shipped model trained in the stored run ``key`` (its card's ``run``), or None."""
+    for entry in cards().values():
+        if entry.get("run") == key:
+            return MODELS / Path(entry["file"]).name
+    return None
 
 
 def resolve(name_or_path: str | os.PathLike) -> Path:

@@ -51,6 +51,7 @@ def publish(model, name: str, result: dict, test_set, configuration: str, out: P
     env = result["environment"]
     entry = {
         "file": file,
+        "run": result["key"],
         "data": f"{result['dataset']}" + (f" {result['category']}" if result.get("category") else ""),
         "split": f"split {result.get('split_index', 0)}: {result.get('n_train', '?')} training meshes",
         "configuration": {"name": configuration, "segment": result["segment"],

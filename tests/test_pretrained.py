@@ -28,7 +28,7 @@ def trained():
     shapes = datasets.load("synthetic", category="figure", split="all", n_shapes=6, progress=False)
     model = fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=2, clusters=4), TrainConfig(epochs=2, width=16),
                 progress=False)
-    result = {"dataset": "synthetic", "category": "figure", "split_index": 0, "n_train": 3, "segment": {}, "train": {},
+    result = {"key": "0123456789abcdef", "dataset": "synthetic", "category": "figure", "split_index": 0, "n_train": 3, "segment": {}, "train": {},
               "accuracy": {"unit_area": 0.5}, "environment": {"code_revision": "abc", "cpus": 2, "cuda": None,
                                                               "date": "2026-12-02T00:00:00+00:00"}}
     return model, result, shapes[3:5]
@@ -109,3 +109,17 @@ def test_each_shipped_name_comes_from_one_run_of_the_shipped_configuration():
         assert all("configuration" not in run.row for run in runs), notebook  # never the plain reading's runs
     assert "psb/Human" in {publish_models.SOURCES["table1_psb.ipynb"](run) for run in notebook_runs(
         "table1_psb.ipynb", notebook_parameters("table1_psb.ipynb", "real"))}
+
+
+def test_a_notebook_uses_the_shipped_model_of_a_run_whose_own_model_is_absent(shipped, tmp_path):
+    from anseg.experiments import COMMON, PER_NOTEBOOK
+    from anseg.notebook import start
+
+    model, entry, test_set = shipped
+    parameters = {**COMMON["smoke"], **PER_NOTEBOOK["table3_human.ipynb"]["smoke"], "output_dir": str(tmp_path / "nb")}
+    nb = start("table3_human", parameters)
+    assert entry["run"] == "0123456789abcdef" and nb.has_model({"key": entry["run"]})
+    loaded = nb.load_model({"key": entry["run"]})
+    assert np.array_equal(segment(test_set[0].mesh, loaded).labels, segment(test_set[0].mesh, model).labels)
+    with pytest.raises(FileNotFoundError, match="not on this machine"):
+        nb.load_model({"key": "fedcba9876543210"})
