@@ -123,3 +123,25 @@ def test_a_notebook_uses_the_shipped_model_of_a_run_whose_own_model_is_absent(sh
     assert np.array_equal(segment(test_set[0].mesh, loaded).labels, segment(test_set[0].mesh, model).labels)
     with pytest.raises(FileNotFoundError, match="not on this machine"):
         nb.load_model({"key": "fedcba9876543210"})
+
+
+def test_the_shipped_psb_human_model_reproduces_its_table_i_run(data_root, tmp_path):
+    """The issue's promise: `anseg segment --model psb/Human <a split-0 test mesh>` gives that run's labels, untrained."""
+    import json
+
+    if "psb/Human" not in pretrained.names():
+        pytest.skip("no psb/Human model shipped in anseg/pretrained/ (scripts/publish_models.py writes it)")
+    card = pretrained.card("psb/Human")
+    stored = json.loads((REPO / "results" / "runs" / f"{card['run']}.json").read_text())
+    assert (stored["category"], stored["split_index"]) == ("Human", 0)
+    from anseg.datasets import psb
+    from anseg.datasets.archive import dataset_folder
+
+    item = next(m for m in datasets.load("psb", "Human", "test", 0, root=data_root, progress=False) if m.face_map is None)
+    mesh_file = dataset_folder(data_root, psb.FOLDER, psb.ARCHIVE) / f"{item.name}.off"  # the file as a user holds it
+    out = tmp_path / "labels.ply"
+    assert main(["segment", "--model", "psb/Human", str(mesh_file), "-o", str(out), "-q"]) == 0
+    labels = np.loadtxt(tmp_path / "labels.txt", dtype=int)
+    areas = item.mesh.face_areas
+    expected = next(m["accuracy"] for m in stored["per_mesh"] if m["name"] == item.name)
+    assert float(areas[labels == item.labels].sum() / areas.sum()) == expected  # float for float
