@@ -92,6 +92,7 @@ class Prepared:
 def run_category(dn, category: str, args, device) -> dict:
     """Train on the split's training meshes, score the test meshes; the figures of one category."""
     import torch
+    from tqdm.auto import tqdm
 
     # reseeded per category, so a category's result does not depend on which ran before it
     torch.manual_seed(args.seed)
@@ -109,7 +110,7 @@ def run_category(dn, category: str, args, device) -> dict:
     scheduler = torch.optim.lr_scheduler.StepLR(optimizer, step_size=DECAY_EVERY, gamma=DECAY_RATE)
     start = time.perf_counter()
     model.train()
-    for _ in range(args.epochs):
+    for _ in tqdm(range(args.epochs), desc=f"DiffusionNet {category}", unit="epoch"):
         for i in torch.randperm(len(train)).tolist():
             loss = torch.nn.functional.nll_loss(train[i].forward(dn, model, rotation if args.input == "xyz" else None), train[i].labels)
             optimizer.zero_grad()
