@@ -26,7 +26,9 @@ Usage::
         [--category Hand Teddy] [--split 0] [--epochs 200] [--input hks|xyz] [--device auto] [--seed 0] \\
         [--op-cache DIR] [--json FILE]
 
-Nothing is written into results/; ``--json FILE`` keeps the printed figures.
+Nothing is written into results/; ``--json FILE`` keeps the printed figures with
+the machine, versions and the clone's commit. The rerun of Hand made on this
+project's 2-core CPU is kept in ``results/peers/``.
 """
 
 from __future__ import annotations
@@ -166,8 +168,12 @@ def main(argv=None) -> None:
     reference_mean = None if None in references else float(np.mean(references))
     print(f"{'mean':10s} unit area {mean:6.2f}" + ("" if reference_mean is None else f"  reference {reference_mean:6.2f}"))
     if args.json:
+        from anseg.experiments import code_revision, environment
+
+        authors = code_revision(args.diffusion_net)["code_revision"]  # the clone's commit: which DiffusionNet ran
         args.json.write_text(json.dumps({"settings": vars(args), "categories": rows, "mean": mean,
-                                         "reference_mean": reference_mean}, indent=1, default=str))
+                                         "reference_mean": reference_mean, "diffusion_net_revision": authors,
+                                         "environment": environment()}, indent=1, default=str))
 
 
 if __name__ == "__main__":
