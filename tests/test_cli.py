@@ -198,3 +198,16 @@ def test_a_users_scan_and_cad_part_segment_with_a_view(tmp_path):
         assert np.array_equal(labels, np.loadtxt(tmp_path / f"{stem}.off.txt", dtype=int))
         page = (tmp_path / f"{name}.html").read_text()
         assert "anseg-legend" in page and all(n in page for n in shapes[0].label_names)
+
+
+def test_a_reader_that_leaves_early_ends_the_listing_quietly(monkeypatch, capsys):
+    import os
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # `anseg models | head -0`: nobody reads
+    with capsys.disabled():
+        monkeypatch.setattr(sys, "stdout", os.fdopen(write_end, "w", buffering=1))
+        monkeypatch.setattr("anseg.pretrained.names", lambda: ["psb/Human"])
+        monkeypatch.setattr("anseg.pretrained.describe", lambda name: name)
+        assert main(["models"]) == 141
+        sys.stdout.close()
