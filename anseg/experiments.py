@@ -272,7 +272,7 @@ PER_NOTEBOOK = {
         "smoke": {"category": "figure"},
     },
     "explore.ipynb": {
-        "real": {"category": "Teddy", **EXPLORE_DEFAULTS},
+        "real": {"category": "Teddy", "config": "default", **EXPLORE_DEFAULTS},  # the shipped models' configuration
         "synthetic": {"category": "figure", **EXPLORE_DEFAULTS},
         "smoke": {"category": "figure", **EXPLORE_DEFAULTS},
     },
@@ -387,11 +387,16 @@ def notebook_runs(name: str, p: dict) -> list[PlannedRun]:
 
 
 def explore_model_name(p: dict) -> str | None:
-    """The shipped model explore.ipynb uses for its data set and category (:mod:`anseg.pretrained`), or None."""
+    """The shipped model explore.ipynb uses for its data set and category (:mod:`anseg.pretrained`), or None.
+
+    Only one trained with the notebook's configuration: a shipped model is
+    never shown under another configuration's name.
+    """
     from anseg import pretrained
 
     name = f"{p['dataset']}/{p['category']}" if p["dataset"] == "psb" else p["category"]
-    return name if name in pretrained.names() else None
+    shipped = pretrained.cards().get(name)
+    return name if shipped and shipped["configuration"]["name"] == p["config"] else None
 
 
 def planned_experiment(run: PlannedRun, p: dict) -> tuple[Experiment, dict]:

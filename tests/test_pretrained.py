@@ -145,3 +145,12 @@ def test_the_shipped_psb_human_model_reproduces_its_table_i_run(data_root, tmp_p
     areas = item.mesh.face_areas
     expected = next(m["accuracy"] for m in stored["per_mesh"] if m["name"] == item.name)
     assert float(areas[labels == item.labels].sum() / areas.sum()) == expected  # float for float
+
+
+def test_explore_uses_a_shipped_model_only_under_its_configuration(shipped):
+    from anseg.experiments import explore_model_name
+
+    assert explore_model_name({"dataset": "synthetic", "category": "figure", "config": "default"}) is None  # not psb
+    assert explore_model_name({"dataset": "figure", "category": "synthetic/figure", "config": "default"}) \
+        == "synthetic/figure"
+    assert explore_model_name({"dataset": "figure", "category": "synthetic/figure", "config": "v1"}) is None
