@@ -6,8 +6,9 @@ live in ``anseg/pretrained/`` beside ``index.json``, which maps every name
 card: the data and split it was trained on, the configuration with every
 setting, its accuracy on the split's test meshes, the code revision, the
 machine, the date and the stored run it comes from (so the notebooks that
-render a run's output use it where the run's own model file is absent). Weights are stored in float16 only where that
-changes no label of those test meshes (the card says which).
+render a run's output use it where the run's own model file is absent).
+Weights are stored in float16 only where that changes no label of those
+test meshes (the card says which).
 
 A name is looked up in the index and nothing else: the file a name leads to
 comes from the index, never from the name, so no user string reaches the
@@ -46,17 +47,19 @@ def card(name: str) -> dict:
     return known[name]
 
 
+def _file(entry: dict) -> Path:
+    """The model file a card names, inside the models' folder whatever the index says."""
+    return MODELS / Path(entry["file"]).name
+
+
 def path(name: str) -> Path:
     """The file of the shipped model ``name``: taken from the index, never built from the name."""
-    return MODELS / Path(card(name)["file"]).name
+    return _file(card(name))
 
 
 def of_run(key: str) -> Path | None:
     """The file of the shipped model trained in the stored run ``key`` (its card's ``run``), or None."""
-    for entry in cards().values():
-        if entry.get("run") == key:
-            return MODELS / Path(entry["file"]).name
-    return None
+    return next((_file(entry) for entry in cards().values() if entry.get("run") == key), None)
 
 
 def resolve(name_or_path: str | os.PathLike) -> Path:
