@@ -21,6 +21,7 @@ from pathlib import Path
 from anseg.experiments import (
     COMMON,
     PER_NOTEBOOK,
+    RECORD_CONFIGURATION,
     REPO,
     PlannedRun,
     ResultStore,
@@ -83,7 +84,17 @@ class NotebookRun:
         experiment, options = planned_experiment(run, {**self.parameters, "config": config})
         return self.store.get(experiment.key(options))
 
-    def model_file(self, result: dict):
+    def for_the_record(self, run: PlannedRun) -> dict | None:
+        """The stored result of ``run`` under the first study's configuration, kept beside ours; never trained.
+
+        None where the store lacks it, or where this notebook runs that
+        configuration itself (the column would repeat ours).
+        """
+        if self.parameters["config"] == RECORD_CONFIGURATION:
+            return None
+        return self.stored_result(run, RECORD_CONFIGURATION)
+
+    def model_file(self, result: dict) -> Path | None:
         """The model file of a result: the store's, else the shipped pretrained model trained in that run, else None.
 
         A result store travels without its models; the shipped models are

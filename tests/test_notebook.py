@@ -62,3 +62,16 @@ def test_real_categories_none_means_every_psb_category(tmp_path):
 
 def test_percent():
     assert percent({"unit_area": 0.5, "faces": 0.25}) == {"unit_area": 50.0, "faces": 25.0}
+
+
+def test_the_record_column_reads_the_first_studys_stored_run_and_never_repeats_ours(tmp_path):
+    from anseg.experiments import RECORD_CONFIGURATION, planned_experiment
+
+    nb = start("table3_human", smoke_parameters("table3_human", tmp_path))
+    (run,) = nb.planned
+    assert nb.for_the_record(run) is None  # not stored: read, never trained
+    experiment, options = planned_experiment(run, {**nb.parameters, "config": RECORD_CONFIGURATION})
+    nb.store.put({"key": experiment.key(options), "accuracy": {"unit_area": 0.5}})
+    assert nb.for_the_record(run)["accuracy"] == {"unit_area": 0.5}
+    own = start("table3_human", {**smoke_parameters("table3_human", tmp_path), "config": RECORD_CONFIGURATION})
+    assert own.for_the_record(run) is None  # the column would repeat ours
