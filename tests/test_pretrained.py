@@ -28,9 +28,9 @@ def trained():
     shapes = datasets.load("synthetic", category="figure", split="all", n_shapes=6, progress=False)
     model = fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=2, clusters=4), TrainConfig(epochs=2, width=16),
                 progress=False)
-    result = {"key": "0123456789abcdef", "dataset": "synthetic", "category": "figure", "split_index": 0, "n_train": 3, "segment": {}, "train": {},
-              "accuracy": {"unit_area": 0.5}, "environment": {"code_revision": "abc", "cpus": 2, "cuda": None,
-                                                              "date": "2026-12-02T00:00:00+00:00"}}
+    result = {"key": "0123456789abcdef", "dataset": "synthetic", "category": "figure", "split_index": 0, "n_train": 3,
+              "segment": {}, "train": {}, "accuracy": {"unit_area": 0.5},
+              "environment": {"code_revision": "abc", "cpus": 2, "cuda": None, "date": "2026-12-02T00:00:00+00:00"}}
     return model, result, shapes[3:5]
 
 
@@ -129,22 +129,22 @@ def test_the_shipped_psb_human_model_reproduces_its_table_i_run(data_root, tmp_p
     """The issue's promise: `anseg segment --model psb/Human <a split-0 test mesh>` gives that run's labels, untrained."""
     import json
 
+    from anseg import metrics
+    from anseg.datasets import psb
+    from anseg.datasets.archive import dataset_folder
+
     if "psb/Human" not in pretrained.names():
         pytest.skip("no psb/Human model shipped in anseg/pretrained/ (scripts/publish_models.py writes it)")
     card = pretrained.card("psb/Human")
     stored = json.loads((REPO / "results" / "runs" / f"{card['run']}.json").read_text())
     assert (stored["category"], stored["split_index"]) == ("Human", 0)
-    from anseg.datasets import psb
-    from anseg.datasets.archive import dataset_folder
-
     item = next(m for m in datasets.load("psb", "Human", "test", 0, root=data_root, progress=False) if m.face_map is None)
     mesh_file = dataset_folder(data_root, psb.FOLDER, psb.ARCHIVE) / f"{item.name}.off"  # the file as a user holds it
     out = tmp_path / "labels.ply"
     assert main(["segment", "--model", "psb/Human", str(mesh_file), "-o", str(out), "-q"]) == 0
     labels = np.loadtxt(tmp_path / "labels.txt", dtype=int)
-    areas = item.mesh.face_areas
     expected = next(m["accuracy"] for m in stored["per_mesh"] if m["name"] == item.name)
-    assert float(areas[labels == item.labels].sum() / areas.sum()) == expected  # float for float
+    assert metrics.accuracy(labels, item.labels, item.mesh.face_areas) == expected  # float for float
 
 
 def test_explore_uses_a_shipped_model_only_under_its_configuration(shipped):
