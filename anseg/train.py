@@ -49,7 +49,7 @@ import torch.nn.functional as F
 from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout
-from anseg.metrics import pooled_accuracy
+from anseg.metrics import accuracy, pooled_accuracy
 from anseg.model import AttentionSegmenter, ModelConfig
 from anseg.spectral import SPECTRUM_PAIRS
 from anseg.pipeline import (
@@ -208,8 +208,8 @@ def _loss(model: Segmenter, example: _Example, train: TrainConfig) -> tuple[torc
         total = total + level_weight * (F.cross_entropy(out.logits, target, reduction="none") * weight).sum()
         if band is not None:
             total = total + train.attention_weight * _attention_loss(out.attention, band)
-    accuracy = float((weight * (out.logits.argmax(1) == target)).sum())
-    return total / sum(level_weights), accuracy
+    coarse_accuracy = float((weight * (out.logits.argmax(1) == target)).sum())
+    return total / sum(level_weights), coarse_accuracy
 
 
 def fit(
@@ -272,12 +272,12 @@ def fit(
         for step, i in enumerate(order.permutation(len(examples)), start=epoch * len(examples)):
             for group in optimizer.param_groups:
                 group["lr"] = learning_rate(train, step, total_steps)
-            loss, accuracy = _loss(model, examples[i], train)
+            loss, coarse_accuracy = _loss(model, examples[i], train)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
             losses.append(loss.item())
-            accuracies.append(accuracy)
+            accuracies.append(coarse_accuracy)
         bar.set_postfix(loss=f"{np.mean(losses):.3f}", acc=f"{np.mean(accuracies):.3f}")
         if epoch >= train.epochs - train.average_last:
             state.add_to_average()
@@ -365,9 +365,8 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
         result = segment(item.mesh, model, config, g, device, ensemble=ensemble)
         smoothed.append(result.labels)
         raw.append(result.unsmoothed_labels)
-        areas = item.mesh.face_areas
         per_mesh.append({"name": item.name, "faces": item.mesh.n_faces,
-                         "accuracy": float(areas[result.labels == item.labels].sum() / areas.sum())})
+                         "accuracy": accuracy(result.labels, item.labels, item.mesh.face_areas)})
     truth = [m.labels for m in test_set]
     areas = [m.mesh.face_areas for m in test_set]
     return {
