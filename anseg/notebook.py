@@ -123,7 +123,18 @@ class NotebookRun:
     def test_meshes(self, dataset: str, category: str | None, split: int = 0) -> list:
         from anseg import datasets
 
+        self._note_data(dataset)
         return datasets.load(dataset, category, "test", split, **(self.shape_options if dataset == "synthetic" else {}))
+
+    def note_model(self, **model) -> None:
+        """Name in the record the model the notebook segments with: ``pretrained=`` and ``card=``, ``file=`` or ``run=``."""
+        self.record["model"] = model
+        print("model:", json.dumps(model, default=str)[:400])
+
+    def _note_data(self, dataset: str) -> None:
+        """Add a data set the notebook read outside its planned runs to the record's ``data``."""
+        if all(entry["dataset"] != dataset for entry in self.record["data"]):
+            self.record["data"].append(self._data_record(dataset))
 
     def notice(self) -> str | None:
         """What a reader must know first about this run's data, or None."""

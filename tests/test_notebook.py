@@ -49,6 +49,19 @@ def test_the_recorded_data_follows_the_plan(tmp_path):
     assert nb.planned == [] and nb.record["data"] == []
 
 
+def test_the_record_names_the_data_read_outside_the_plan_and_the_model(tmp_path, capsys):
+    """explore.ipynb with a shipped model plans no run, yet reads a test mesh: both are in its record."""
+    parameters = {**smoke_parameters("explore", tmp_path), "model_path": "m.pt"}
+    nb = NotebookRun("explore", parameters)
+    assert nb.record["data"] == []
+    nb.test_meshes("synthetic", parameters["category"])
+    nb.test_meshes("synthetic", parameters["category"])
+    assert [d["dataset"] for d in nb.record["data"]] == ["synthetic"]  # once, however often read
+    nb.note_model(pretrained="psb/Human", card={"run": "0123456789abcdef"})
+    assert '"pretrained": "psb/Human"' in capsys.readouterr().out
+    assert json.loads(nb.finish().read_text())["model"] == {"pretrained": "psb/Human", "card": {"run": "0123456789abcdef"}}
+
+
 def test_real_categories_none_means_every_psb_category(tmp_path):
     from anseg import datasets
 
