@@ -95,16 +95,20 @@ class NotebookRun:
         return self.stored_result(run, RECORD_CONFIGURATION)
 
     def model_file(self, result: dict) -> Path | None:
-        """The model file of a result: the store's, else the shipped pretrained model trained in that run, else None.
+        """The model file of a result: the store's, else the committed one the figures render, else the shipped one.
 
-        A result store travels without its models; the shipped models are
-        those of the runs Tables I-III read (float16 where that changes no
-        test label).
+        A result store travels without its models (``models/`` is not
+        committed). Two kinds are: the pretrained models shipped with the
+        package (those of the runs Tables I-III read) and, in
+        ``results/models/``, the few others whose output a figure renders
+        (``scripts/publish_models.py`` writes both). None when neither has it.
         """
         from anseg import pretrained
 
-        local = self.store.model_path(result["key"])
-        return local if local.is_file() else pretrained.of_run(result["key"])
+        for path in (self.store.model_path(result["key"]), self.results_dir / "models" / f"{result['key']}.pt"):
+            if path.is_file():
+                return path
+        return pretrained.of_run(result["key"])
 
     def has_model(self, result: dict) -> bool:
         """Whether the model of a result is on this machine or shipped with the package."""

@@ -1,4 +1,4 @@
-"""Ship the pretrained models: Table I's split-0 runs, the human set and the COSEG sets, from the result store.
+"""Ship the pretrained models (Table I's split-0 runs, the human set, the COSEG sets) and the figures' models.
 
     python scripts/publish_models.py --config default [--data DIR]
 
@@ -6,9 +6,12 @@ Takes, for every run of those notebooks' real plan under ``--config``, the
 stored result (``results/runs/<key>.json``) and its model
 (``models/<key>.pt``), and writes it with its model card into
 ``anseg/pretrained/`` (:func:`publish`: float16 where that changes no test
-label). Trains nothing: a run whose result or model is not
-here is listed and left out. The test meshes are read only to check the
-float16 copy against the trained model, after the run's one reading of them.
+label). The models whose output Figs. 4-8, 10 and 12 render and that are
+not shipped already are copied as they are into ``results/models/``, so that
+the notebooks regenerate from a clone without training. Trains nothing: a
+run whose result or model is not here is listed and left out. The test
+meshes are read only to check the float16 copy against the trained model,
+after the run's one reading of them.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from __future__ import annotations
 import argparse
 import io
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -31,6 +35,10 @@ SOURCES = {"table1_psb.ipynb": lambda run: f"psb/{run.category}" if run.split ==
            else None,
            "table3_human.ipynb": lambda run: "human_seg",
            "table2_coseg.ipynb": lambda run: run.dataset if run.category is None else None}
+# the runs whose models the figure notebooks render (fig12: the first category, split 0), as those notebooks load them
+RENDERED = {"fig4_attention.ipynb": lambda run, p: True,
+            "fig12_features.ipynb": lambda run, p: run.split == 0 and run.category == p["categories"][0]}
+FIGURE_MODELS = REPO / "results" / "models"
 
 
 def publish(model, name: str, result: dict, test_set, configuration: str, out: Path = pretrained.MODELS) -> dict:
@@ -70,6 +78,14 @@ def publish(model, name: str, result: dict, test_set, configuration: str, out: P
     return entry
 
 
+def _runs(notebook: str, config: str):
+    """Every run of a notebook's real plan under ``config``: (run, the notebook's parameters, experiment, stored key)."""
+    p = {**notebook_parameters(notebook, "real"), "config": config}
+    for run in notebook_runs(notebook, p):
+        experiment, options = planned_experiment(run, p)
+        yield run, p, experiment, experiment.key(options)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--config", default="default", help="the named configuration the runs were trained with")
@@ -77,12 +93,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     store, missing = ResultStore(REPO), []
     for notebook, name_of in SOURCES.items():
-        p = {**notebook_parameters(notebook, "real"), "config": args.config}
-        for run in notebook_runs(notebook, p):
+        for run, _, experiment, key in _runs(notebook, args.config):
             if (name := name_of(run)) is None:
                 continue
-            experiment, options = planned_experiment(run, p)
-            key = experiment.key(options)
             result = store.get(key)
             if result is None or not store.model_path(key).is_file():
                 missing.append(f"{name} ({key})")
@@ -91,6 +104,16 @@ def main(argv=None) -> int:
                                      root=args.data, progress=False)
             entry = publish(Segmenter.load(store.model_path(key)), name, result, test_set, args.config)
             print(f"{name}: {entry['precision']}, test accuracy {100 * entry['test_accuracy']['unit_area']:.2f} %")
+    for notebook, rendered in RENDERED.items():
+        for run, p, _, key in _runs(notebook, args.config):
+            if not rendered(run, p) or pretrained.of_run(key) is not None:
+                continue
+            if not store.model_path(key).is_file():
+                missing.append(f"{notebook} {run.row} ({key})")
+                continue
+            FIGURE_MODELS.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(store.model_path(key), FIGURE_MODELS / f"{key}.pt")
+            print(f"{notebook} {run.row}: results/models/{key}.pt")
     if missing:
         print(f"not published (no stored result or model here): {', '.join(missing)}", file=sys.stderr)
     return 0

@@ -123,6 +123,24 @@ def test_a_notebook_uses_the_shipped_model_of_a_run_whose_own_model_is_absent(sh
     assert np.array_equal(segment(test_set[0].mesh, loaded).labels, segment(test_set[0].mesh, model).labels)
     with pytest.raises(FileNotFoundError, match="not on this machine"):
         nb.load_model({"key": "fedcba9876543210"})
+    # a figure's model committed in results/models/ (not shipped) serves too
+    (nb.results_dir / "models").mkdir()
+    (nb.results_dir / "models" / "fedcba9876543210.pt").write_bytes(model.to_bytes())
+    assert nb.model_file({"key": "fedcba9876543210"}) == nb.results_dir / "models" / "fedcba9876543210.pt"
+
+
+def test_the_figures_models_are_those_the_figure_notebooks_render():
+    from anseg.experiments import OWN_FEATURES, notebook_parameters, notebook_runs
+    from anseg.features import ABLATION_SETS
+
+    chosen = {}
+    for notebook, rendered in publish_models.RENDERED.items():
+        p = notebook_parameters(notebook, "real")
+        chosen[notebook] = [run for run in notebook_runs(notebook, p) if rendered(run, p)]
+    # fig4: the four models it compares on one mesh; fig12: one model per feature set on its first category, split 0
+    assert {(run.row.get("configuration"), run.row["mode"]) for run in chosen["fig4_attention.ipynb"]} == {
+        (None, "nonuniform"), (None, "uniform"), (None, "none"), ("paper", "nonuniform")}
+    assert sorted(run.row["features"] for run in chosen["fig12_features.ipynb"]) == sorted([*ABLATION_SETS, OWN_FEATURES])
 
 
 def test_the_shipped_psb_human_model_reproduces_its_table_i_run(data_root, tmp_path):
