@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,10 +27,32 @@ def page(tmp_path_factory):
     model = fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=2, clusters=4), TrainConfig(epochs=3, width=16),
                 progress=False)
     result = segment(shapes[4].mesh, model)
-    path = tmp_path_factory.mktemp("view") / "view.html"
+    folder = tmp_path_factory.mktemp("view")
+    path = folder / "view.html"
     names = [*model.label_names[:-1], "<b>&odd</b>"]  # a label name is text, never markup
     viewer.write_html(result, names, path, title="figure")
+    model.save(folder / "figure.pt")
     return path, result, names
+
+
+@pytest.fixture(scope="module")
+def scan_page(page):
+    """The page `anseg segment --repair --html` writes for a scan given as STL: holes and one stray far vertex."""
+    import trimesh
+
+    from anseg.cli import main
+
+    path, result, names = page
+    mesh = result.levels[0].mesh
+    holed = np.delete(mesh.faces, [0, mesh.n_faces // 2], axis=0)
+    scan = path.parent / "scan.stl"
+    trimesh.Trimesh(np.vstack([mesh.vertices, [[1e9, -1e9, 1e9]]]), holed, process=False).export(scan, file_type="stl")
+    out = path.parent / "scan.html"
+    assert main(["segment", "--model", str(path.parent / "figure.pt"), str(scan), "--repair", "--html", str(out),
+                 "-o", str(path.parent / "scan.ply")]) == 0
+    labels = np.loadtxt(path.parent / "scan.txt", dtype=int)
+    assert labels.shape == (len(holed),)  # one label per face of the input file
+    return out, labels, names  # the page names the model's labels; the colours depend on their number alone
 
 
 def test_the_page_is_self_contained_with_a_legend(page):
@@ -41,22 +65,38 @@ def test_the_page_is_self_contained_with_a_legend(page):
     assert n_panels == 2 * len(result.levels) + 1  # labels and attention per level, and the confidence
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
-def test_a_browser_draws_the_mesh_in_the_label_colours(page, tmp_path):
+def _screenshot(path, name: str, folder):
+    """Headless Chromium's picture of a page, kept in ``$ANSEG_SCREENSHOTS`` when that is set."""
     from PIL import Image
 
-    path, result, names = page
-    shot = tmp_path / "shot.png"
+    out = Path(os.environ.get("ANSEG_SCREENSHOTS", folder))
+    out.mkdir(parents=True, exist_ok=True)
     subprocess.run([CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-                    "--virtual-time-budget=8000", "--window-size=1200,800", f"--screenshot={shot}", path.as_uri()],
+                    "--virtual-time-budget=8000", "--window-size=1200,800", f"--screenshot={out / name}", path.as_uri()],
                    capture_output=True, timeout=120, check=True)
-    pixels = np.asarray(Image.open(shot).convert("RGB")).reshape(-1, 3).astype(int)
-    assert (pixels.std(axis=0) > 10).all(), "a blank page"
-    used = palette(len(names))[np.unique(result.labels)]
+    return np.asarray(Image.open(out / name).convert("RGB")).astype(int)
+
+
+def _assert_drawn_in(picture: np.ndarray, labels: np.ndarray, n_names: int):
+    assert (picture.reshape(-1, 3).std(axis=0) > 10).all(), "a blank page"
+    used = palette(n_names)[np.unique(labels)]
     # lighting shades a face's colour, so look for pixels near the hue of a predicted label, in the 3D view's area
-    lower_half = np.asarray(Image.open(shot).convert("RGB"))[250:].reshape(-1, 3).astype(int)
+    lower_half = picture[250:].reshape(-1, 3)
     hits = [int((np.abs(lower_half - colour).sum(axis=1) < 60).sum()) for colour in used]
     assert max(hits) > 200, f"no label colour drawn: {hits}"
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
+def test_a_browser_draws_the_mesh_in_the_label_colours(page, tmp_path):
+    path, result, names = page
+    _assert_drawn_in(_screenshot(path, "viewer.png", tmp_path), result.labels, len(names))
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
+def test_a_browser_draws_a_repaired_stl_scan_from_the_command_line(scan_page, tmp_path):
+    path, labels, names = scan_page
+    assert "anseg-legend" in path.read_text()
+    _assert_drawn_in(_screenshot(path, "viewer_scan_stl.png", tmp_path), labels, len(names))
 
 
 def test_the_live_view_follows_its_slider_and_colouring(page):
