@@ -14,7 +14,8 @@ machine, into the same result store (``results/runs/<key>.json``,
 ``models/``); ``--scheduler tcp://HOST:8786`` sends them to a running Dask
 cluster instead. A notebook run afterwards reads the stored results instead
 of training, so a long real run can be spread over processes, machines (a
-GPU box) and sessions.
+GPU box) and sessions. ``--status`` says, per notebook, how many of its
+planned runs the store holds and about how much training is left.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from anseg.experiments import (
     PER_NOTEBOOK,
     REPO,
     ResultStore,
+    notebook_parameters,
     output_dirs,
     planned_experiments,
     run_plan,
@@ -79,6 +81,26 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
     return failed
 
 
+def status(kind: str, only: list[str] | None = None, out: Path | None = None, config: str | None = None) -> list[dict]:
+    """Per notebook: its configuration, its planned runs, how many the store holds, and the training time left.
+
+    The time left is the stored runs' median training time (one process)
+    times the runs missing; None before any is stored.
+    """
+    from statistics import median
+
+    store = ResultStore(output_dirs(kind, out)[1])
+    rows = []
+    for name in selected_notebooks(only):
+        plan = planned_experiments(kind, [name], config)
+        stored = [r for r in (store.get(e.key(x)) for e, x in plan) if r is not None]
+        seconds = [r["train_seconds"] for r in stored if "train_seconds" in r]
+        rows.append({"notebook": name, "config": config or notebook_parameters(name, kind)["config"],
+                     "planned": len(plan), "stored": len(stored),
+                     "hours_left": median(seconds) * (len(plan) - len(stored)) / 3600 if seconds else None})
+    return rows
+
+
 def failed_name(name: str) -> str:
     """Where a notebook is executed before it is known to succeed (and stays when it fails); git ignores it."""
     return f"{Path(name).stem}.failed.ipynb"
@@ -101,6 +123,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="with --train-only: a running Dask scheduler (tcp://HOST:8786) to send the runs to")
     parser.add_argument("--backend", choices=["dask", "loky"], default="dask",
                         help="with --train-only: Dask (default), or a plain process pool where Dask is not installed")
+    parser.add_argument("--status", action="store_true",
+                        help="say how many of each notebook's planned runs are stored, and the training left; run nothing")
     parser.add_argument("--stop-after", type=float, metavar="MINUTES",
                         help="with --train-only: start no run after this many minutes (the runs under way finish)")
     args = parser.parse_args(argv)
@@ -111,6 +135,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.scheduler and args.backend != "dask":
         parser.error("--scheduler needs the dask backend")
     kind = "smoke" if args.smoke else args.data
+    if args.status:
+        for row in status(kind, args.only, args.out, args.config):
+            left = ("trains nothing" if not row["planned"] else "no run stored yet" if row["hours_left"] is None
+                    else f"about {row['hours_left']:.1f} h of one-process training left")
+            print(f"{row['notebook']:<26} {row['config']:<8} {row['stored']:>4} of {row['planned']:>4} runs stored; {left}")
+        return 0
     if args.train_only:
         store = ResultStore(output_dirs(kind, args.out)[1])
         failed = run_plan(planned_experiments(kind, args.only, args.config), store, args.workers, args.scheduler, args.backend,

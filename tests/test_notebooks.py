@@ -171,3 +171,19 @@ def test_a_failed_notebook_never_replaces_its_executed_copy(tmp_path, monkeypatc
     monkeypatch.setattr(papermill, "execute_notebook", lambda source, target, **kwargs: Path(target).write_text("new run"))
     assert reproduce.run("smoke", only=[name], out=tmp_path) == 0
     assert executed.read_text() == "new run" and not (executed.parent / reproduce.failed_name(name)).exists()
+
+
+def test_status_counts_the_stored_runs_and_the_training_left(tmp_path, capsys):
+    from anseg.experiments import ResultStore, output_dirs
+    from anseg.reproduce import main, status
+
+    (before,) = status("smoke", ["table4"], out=tmp_path)
+    assert before["stored"] == 0 and before["planned"] > 1 and before["hours_left"] is None
+    experiment, extra = planned_experiments("smoke", ["table4"])[0]
+    ResultStore(output_dirs("smoke", tmp_path)[1]).put({"key": experiment.key(extra), "train_seconds": 360.0})
+    (after,) = status("smoke", ["table4"], out=tmp_path)
+    assert after["stored"] == 1 and after["hours_left"] == pytest.approx(0.1 * (after["planned"] - 1))
+    assert main(["--smoke", "--status", "--only", "table4", "claims", "--out", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].startswith("table4_ablation.ipynb") and f"1 of {after['planned']:>4} runs stored" in printed[0]
+    assert printed[1].startswith("claims_ledger.ipynb") and printed[1].endswith("trains nothing")
