@@ -37,6 +37,7 @@ class Claim:
     name: str
     paper: str  # what the paper claims, in our words
     decide: Callable[[Path], Verdict]  # from the folder that holds results/*.csv
+    sources: tuple[str, ...] = ()  # the notebooks whose results decide it (their records name the configuration)
 
 
 class MissingResult(Exception):
@@ -226,24 +227,42 @@ def _manifold(results: Path) -> Verdict:
 
 
 CLAIMS = [
-    Claim("PSB accuracy", "95.29 mean over 16 PSB categories (Table I)", _psb_mean),
-    Claim("PSB, best in most categories", "above ShapePFCN, MeshCNN and MeshWalker in most categories", _psb_best_in_most),
-    Claim("COSEG accuracy", "93.55 mean over the 8 small COSEG sets (Table II)", _coseg_small),
-    Claim("Human body accuracy", "93.12 on the human body set (Table III)", _human),
-    Claim("Downsampling order", "nonuniform > uniform > none (Table IV)", _ablation_order),
-    Claim("Attention at junctions", "attention concentrates at details and part junctions (Fig. 4)", _attention_at_junctions),
-    Claim("More cycles help", "accuracy rises with N, then levels off or falls (Fig. 11)", _cycles),
-    Claim("N = 4, ratio 0.5", "4 cycles removing half the faces each is the best choice (Fig. 11)", _best_setting),
-    Claim("All four feature groups", "edge + GC + SDF + AGD is the best set; AGD adds global information (Fig. 12)", _features),
-    Claim("Better than MeshCNN and Guo et al.", "visibly better than MeshCNN and Guo et al. (Fig. 9)", _better_than_meshcnn),
+    Claim("PSB accuracy", "95.29 mean over 16 PSB categories (Table I)", _psb_mean, ("table1_psb",)),
+    Claim("PSB, best in most categories", "above ShapePFCN, MeshCNN and MeshWalker in most categories", _psb_best_in_most,
+          ("table1_psb",)),
+    Claim("COSEG accuracy", "93.55 mean over the 8 small COSEG sets (Table II)", _coseg_small, ("table2_coseg",)),
+    Claim("Human body accuracy", "93.12 on the human body set (Table III)", _human, ("table3_human",)),
+    Claim("Downsampling order", "nonuniform > uniform > none (Table IV)", _ablation_order, ("table4_ablation",)),
+    Claim("Attention at junctions", "attention concentrates at details and part junctions (Fig. 4)", _attention_at_junctions,
+          ("fig4_attention",)),
+    Claim("More cycles help", "accuracy rises with N, then levels off or falls (Fig. 11)", _cycles, ("fig11_cycles_ratio",)),
+    Claim("N = 4, ratio 0.5", "4 cycles removing half the faces each is the best choice (Fig. 11)", _best_setting,
+          ("fig11_cycles_ratio",)),
+    Claim("All four feature groups", "edge + GC + SDF + AGD is the best set; AGD adds global information (Fig. 12)", _features,
+          ("fig12_features",)),
+    Claim("Better than MeshCNN and Guo et al.", "visibly better than MeshCNN and Guo et al. (Fig. 9)", _better_than_meshcnn,
+          ("table1_psb",)),
     Claim("Labels survive", "labels survive the collapses and the vote back to the input faces", _labels_survive),
     Claim("Manifold input", "the method needs manifold meshes (a stated limitation)", _manifold),
-    Claim("Cost", "10 minutes of training and 30 s of evaluation per model of 20K-30K faces", _cost),
+    Claim("Cost", "10 minutes of training and 30 s of evaluation per model of 20K-30K faces", _cost, ("table1_psb",)),
 ]
 
 
+def _configurations(results: Path, sources: tuple[str, ...]) -> str:
+    """The named configurations of the runs behind a claim, from its notebooks' records ("" when none is read)."""
+    import json
+
+    names = []
+    for source in sources:
+        record = results / f"{source}.json"
+        name = (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None
+        if name is not None and name not in names:
+            names.append(name)
+    return ", ".join(names)
+
+
 def ledger(results: str | Path, benchmark: bool = True):
-    """The ledger as a DataFrame (claim, the paper, our evidence, verdict) from the folder that holds results/*.csv.
+    """The ledger as a DataFrame (claim, the paper, our evidence, configuration, verdict) from the folder of results/*.csv.
 
     ``benchmark=False`` (results of the synthetic data): no claim of the
     paper can be judged on them, and every row says so.
@@ -259,12 +278,13 @@ def ledger(results: str | Path, benchmark: bool = True):
         except MissingResult as missing:
             verdict = Verdict(f"no result: {missing}", UNTESTED)
         rows.append({"claim": claim.name, "the paper": claim.paper, "our evidence": verdict.evidence,
+                     "configuration": _configurations(Path(results), claim.sources) if benchmark else "",
                      "verdict": verdict.verdict})
     return pd.DataFrame(rows)
 
 
 def markdown(table) -> str:
     """The ledger as a Markdown table (for the README and the notebook)."""
-    lines = ["| claim | the paper | our evidence | verdict |", "|---|---|---|---|"]
-    lines += [f"| {r.claim} | {r._2} | {r._3} | **{r.verdict}** |" for r in table.itertuples()]
+    lines = ["| claim | the paper | our evidence | configuration | verdict |", "|---|---|---|---|---|"]
+    lines += [f"| {r.claim} | {r._2} | {r._3} | {r.configuration} | **{r.verdict}** |" for r in table.itertuples()]
     return "\n".join(lines)

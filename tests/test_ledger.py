@@ -55,3 +55,16 @@ def test_a_missing_result_or_synthetic_data_cannot_decide(results):
     assert table.loc["All four feature groups", "verdict"] == ledger.UNTESTED
     assert "fig12_features.csv is not written yet" in table.loc["All four feature groups", "our evidence"]
     assert set(ledger.ledger(results, benchmark=False).verdict) == {ledger.UNTESTED}
+
+
+def test_each_row_names_the_configuration_its_notebooks_ran(results):
+    import json
+
+    record = json.loads((results / "table4_ablation.json").read_text())
+    (results / "table4_ablation.json").write_text(json.dumps({**record, "configuration": "default"}))
+    (results / "fig4_attention.json").write_text(json.dumps({"notebook": "fig4_attention"}))  # a record from before
+    table = ledger.ledger(results).set_index("claim")
+    assert table.loc["Downsampling order", "configuration"] == "default"
+    assert table.loc["Attention at junctions", "configuration"] == "not recorded"
+    assert table.loc["Manifold input", "configuration"] == ""  # decided by the code, not by runs
+    assert "| default | **" in ledger.markdown(table.reset_index())
