@@ -160,6 +160,15 @@ class NotebookRun:
                   f"code {runs_read['code_revisions']}, {runs_read['train_hours']:.2f} h of training in all")
         return path
 
+    def machines(self) -> str:
+        """One sentence, for beside a table: the machines that trained the runs read so far, plainly when several."""
+        machines = self._runs_read()["machines"]
+        listed = ", ".join(f"{machine} ({n} run{'s' if n > 1 else ''})" for machine, n in machines.items())
+        if len(machines) > 1:
+            return (f"**These runs mix machines:** {listed}. The same run can score differently on another device or "
+                    "with other library versions; each run's machine is in the runs table.")
+        return f"Trained on one kind of machine: {listed}." if machines else "No stored run is read here."
+
     def _runs_read(self) -> dict:
         """How many runs the notebook read, the machines and code revisions that trained them, and their training time."""
         from collections import Counter

@@ -88,3 +88,13 @@ def test_the_record_column_reads_the_first_studys_stored_run_and_never_repeats_o
     assert nb.for_the_record(run)["accuracy"] == {"unit_area": 0.5}
     own = start("table3_human", {**smoke_parameters("table3_human", tmp_path), "config": RECORD_CONFIGURATION})
     assert own.for_the_record(run) is None  # the column would repeat ours
+
+
+def test_beside_a_table_a_notebook_says_which_machines_trained_its_runs(tmp_path):
+    nb = NotebookRun("table1_psb", smoke_parameters("table1_psb", tmp_path))
+    assert nb.machines() == "No stored run is read here."
+    cpu = {"environment": {"cuda": None, "cpus": 2}, "train_seconds": 60.0}
+    nb.read = {"a": cpu, "b": cpu}
+    assert nb.machines() == "Trained on one kind of machine: CPU, 2 cores (2 runs)."
+    nb.read["c"] = {"environment": {"cuda": "NVIDIA H100", "cpus": 16}, "train_seconds": 60.0}
+    assert nb.machines().startswith("**These runs mix machines:** CPU, 2 cores (2 runs), NVIDIA H100 (1 run).")
