@@ -80,7 +80,7 @@ def test_smoke_reproduction_runs_every_notebook(tmp_path):
 
 
 def test_real_plan_covers_every_table_once():
-    plan = planned_experiments("real")
+    plan = planned_experiments("real", config="default")  # one configuration throughout: the notebooks share runs
     keys = [experiment.key(options) for experiment, options in plan]
     assert len(keys) == len(set(keys))
     psb = [e for e, _ in plan if e.dataset == "psb"]
@@ -96,7 +96,7 @@ def test_real_plan_covers_every_table_once():
     # and Table I's column of the paper's method as written, on its first split
     assert len(psb) == 16 * splits + 16 + 9 * table4_splits + 12 * fig12_splits + fig11_runs - fig11_shared
     assert {e.dataset for e, _ in plan} == {"psb", "coseg_aliens", "coseg_chairs", "coseg_vases", "human_seg"}
-    only = planned_experiments("real", only=["table4"])
+    only = planned_experiments("real", only=["table4"], config="default")
     rows = [("nonuniform", 2), ("uniform", 2), ("none", 0), ("none", 2)]  # (mode, depth): depth 0 is the paper's "none"
     assert sorted((e.category, e.split_index, e.segment.mode, e.train.depth) for e, _ in only) == sorted(
         (c, s, m, d) for c in ("Human", "Teddy", "Airplane") for s in range(table4_splits) for m, d in rows)
