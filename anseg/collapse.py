@@ -875,6 +875,16 @@ def upsample_through(records: Sequence[CollapseRecord], coarse_probs) -> np.ndar
     return probs
 
 
+def round_trip_labels(records: Sequence[CollapseRecord], labels, areas, n_classes: int) -> np.ndarray:
+    """(F,) ``labels`` pooled to the last level of ``records`` and carried back by the vote.
+
+    The best any labelling of that coarse level can do once upsampled: the
+    faces it gets wrong are those whose label did not survive the collapses.
+    """
+    coarse = pool_labels(records, labels, areas, n_classes)
+    return upsample_through(records, one_hot(coarse, n_classes)).argmax(axis=1)
+
+
 def rings_to_other_label(mesh, labels) -> np.ndarray:
     """(F,) face-graph distance, in rings, from each face to the nearest face with another label (1 = adjacent).
 

@@ -268,7 +268,7 @@ PER_NOTEBOOK = {
         "smoke": {"categories": ["figure"], "cycles_list": [1, 2], "removed": {"figure": [0.5]}, "splits": [0]},
     },
     "fig4_attention.ipynb": {
-        "real": {"category": "Human"},
+        "real": {"category": "Human", "config": "default"},
         "synthetic": {"category": "figure"},
         "smoke": {"category": "figure"},
     },

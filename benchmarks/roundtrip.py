@@ -37,7 +37,8 @@ import warnings
 import numpy as np
 
 from anseg import datasets
-from anseg.collapse import COLLAPSE_MODES, CollapseWarning, compose, downsample, one_hot, pool_labels, rings_to_other_label, upsample_through
+from anseg.collapse import (COLLAPSE_MODES, CollapseWarning, compose, downsample, pool_labels, rings_to_other_label,
+                            round_trip_labels)
 from anseg.metrics import pooled_accuracy
 
 
@@ -61,8 +62,7 @@ def round_trip(item, mode: str, cycles: int, ratio: float, seed: int) -> tuple[n
         missed += not record.reached_target
         records.append(record)
         current_labels = pool_labels(records, item.labels, areas, n_classes)
-    probs = upsample_through(records, one_hot(current_labels, n_classes))
-    return probs.argmax(axis=1), missed
+    return round_trip_labels(records, item.labels, areas, n_classes), missed
 
 
 def learned_round_trip(item, model, once_per_pass: bool) -> tuple[np.ndarray, int]:
@@ -76,9 +76,7 @@ def learned_round_trip(item, model, once_per_pass: bool) -> tuple[np.ndarray, in
         warnings.simplefilter("ignore", CollapseWarning)
         levels = build_levels(item.mesh, model, replace(model.config, once_per_pass=once_per_pass))
     records = [level.record for level in levels[:-1]]
-    coarse_labels = pool_labels(records, item.labels, item.mesh.face_areas, n_classes)
-    probs = upsample_through(records, one_hot(coarse_labels, n_classes))
-    return probs.argmax(axis=1), int(np.bincount(compose(records)).max())
+    return round_trip_labels(records, item.labels, item.mesh.face_areas, n_classes), int(np.bincount(compose(records)).max())
 
 
 def learned_study(model_path: str, categories) -> None:

@@ -108,7 +108,7 @@ def main(argv=None) -> int:
         for run, p, _, key in _runs(notebook, args.config):
             if not rendered(run, p) or pretrained.of_run(key) is not None:
                 continue
-            if not store.model_path(key).is_file():
+            if store.get(key) is None or not store.model_path(key).is_file():
                 missing.append(f"{notebook} {run.row} ({key})")
                 continue
             FIGURE_MODELS.mkdir(parents=True, exist_ok=True)

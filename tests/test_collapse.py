@@ -22,6 +22,7 @@ from anseg.collapse import (
     pool,
     pool_labels,
     rings_to_other_label,
+    round_trip_labels,
     upsample,
     upsample_through,
 )
@@ -163,6 +164,23 @@ def test_constant_labels_survive_the_round_trip(mesh, mode, label):
     coarse_labels = pool_labels(records, labels, mesh.face_areas, n_classes=4)
     np.testing.assert_array_equal(coarse_labels, label)
     np.testing.assert_array_equal(upsample_through(records, one_hot(coarse_labels, 4)), one_hot(labels, 4))
+    np.testing.assert_array_equal(round_trip_labels(records, labels, mesh.face_areas, 4), labels)
+
+
+@settings(max_examples=15, deadline=None)
+@given(mesh=meshes(), mode=st.sampled_from(COLLAPSE_MODES), seed=st.integers(0, 2**16))
+def test_the_round_trip_keeps_labels_of_faces_no_collapse_touched(mesh, mode, seed):
+    """A face that survives every cycle keeps the coarse label it pooled to; with one label per face, its own."""
+    rng = np.random.default_rng(seed)
+    records, current = [], mesh
+    for _ in range(2):
+        current, record, _ = run_cycle(current, mode, 0.5, rng)
+        records.append(record)
+    labels = rng.integers(0, 3, mesh.n_faces)
+    back = round_trip_labels(records, labels, mesh.face_areas, 3)
+    assert back.shape == labels.shape and set(np.unique(back)) <= set(np.unique(labels))
+    alone = np.bincount(compose(records), minlength=current.n_faces)[compose(records)] == 1  # stands for itself alone
+    np.testing.assert_array_equal(back[alone], labels[alone])
 
 
 @pytest.mark.parametrize("mode", COLLAPSE_MODES)

@@ -42,6 +42,14 @@ def test_verdicts_follow_the_numbers(results):
     levels.to_csv(results / "fig4_attention.csv", index=False)
     assert verdict("Attention at junctions") == ledger.HOLDS
 
+    trips = pd.DataFrame({"model": ["ours", "ours", "paper", "paper"], "downsampling": ["uniform", "nonuniform"] * 2,
+                          "mesh": "Human/2", "labels kept (%)": [97.0, 98.0, 97.0, 80.0]})
+    trips.to_csv(results / "fig4_round_trip.csv", index=False)
+    assert verdict("Labels survive") == ledger.FAILS  # the paper's own hierarchy loses labels that uniform keeps
+    trips.loc[3, "labels kept (%)"] = 97.5
+    trips.to_csv(results / "fig4_round_trip.csv", index=False)
+    assert verdict("Labels survive") == ledger.HOLDS
+
     table1 = pd.read_csv(results / "table1_psb.csv", index_col=0)
     over = next(c for c in table1.columns if c.startswith("ours, unit area, mean of"))
     table1.loc["mean", over] = 95.29 - table1.loc["mean", "ours, std over splits"] / 2  # short by less than the spread
