@@ -245,7 +245,7 @@ PER_NOTEBOOK = {
         "smoke": {"categories": ["vessel"]},
     },
     "table3_human.ipynb": {
-        "real": {"dataset": "human_seg", "category": None},
+        "real": {"dataset": "human_seg", "category": None, "config": "default"},
         "synthetic": {"dataset": "synthetic", "category": "figure"},
         "smoke": {"dataset": "synthetic", "category": "figure"},
     },
