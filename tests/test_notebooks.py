@@ -41,10 +41,10 @@ def _expected_files(out: Path) -> list[Path]:
     smoke = {name: {**COMMON["smoke"], **PER_NOTEBOOK[name]["smoke"]} for name in PER_NOTEBOOK}
     results = ["table1_psb.csv", "table1_psb_runs.csv", "table2_coseg.csv", "table3_human.csv", "table4_ablation.csv",
                "table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv", "fig4_attention.csv",
-               "claims_ledger.csv"]
+               "fig4_round_trip.csv", "claims_ledger.csv"]
     results += [name.replace(".ipynb", ".json") for name in PER_NOTEBOOK]
     figures = ["table3_human.png", "table4_ablation.png", "fig12_features.png", "fig12_renders.png", "fig4_attention.png",
-               "fig5_8_predictions.png", "fig10_modes.png", "explore_levels.png", "explore_labels.png",
+               "fig4_attention_paper.png", "fig5_8_predictions.png", "fig10_modes.png", "explore_levels.png", "explore_labels.png",
                "explore_confidence.png"]
     figures += [f"table2_coseg_{c}.png" for c in smoke["table2_coseg.ipynb"]["categories"]]
     figures += [f"fig11_cycles_ratio_{c}.png" for c in smoke["fig11_cycles_ratio.ipynb"]["categories"]]
