@@ -6,8 +6,10 @@ STAMP := $(VENV)/.installed
 # make reproduce DATA=synthetic (default: no download, minutes on a CPU, writes runs/synthetic)
 # make reproduce DATA=real      (the benchmark archives under $$ANSEG_DATA; writes figures/ and results/)
 # make reproduce CONFIG=paper   (every run from a named configuration of anseg.configs instead of the plan's)
+# make reproduce ONLY="table2 fig4"  (only the notebooks whose names contain one of these)
 DATA ?= synthetic
 CONFIG ?=
+ONLY ?=
 
 .PHONY: reproduce test clean
 
@@ -19,7 +21,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 reproduce: $(STAMP)
-	$(BIN)/python -m anseg.reproduce --data $(DATA) $(if $(CONFIG),--config $(CONFIG))
+	$(BIN)/python -m anseg.reproduce --data $(DATA) $(if $(CONFIG),--config $(CONFIG)) $(if $(ONLY),--only $(ONLY))
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
