@@ -880,7 +880,10 @@ def round_trip_labels(records: Sequence[CollapseRecord], labels, areas, n_classe
 
     The best any labelling of that coarse level can do once upsampled: the
     faces it gets wrong are those whose label did not survive the collapses.
+    No records (the input level itself): the labels as they are.
     """
+    if not len(records):
+        return np.asarray(labels).copy()
     coarse = pool_labels(records, labels, areas, n_classes)
     return upsample_through(records, one_hot(coarse, n_classes)).argmax(axis=1)
 

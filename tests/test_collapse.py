@@ -181,6 +181,7 @@ def test_the_round_trip_keeps_labels_of_faces_no_collapse_touched(mesh, mode, se
     assert back.shape == labels.shape and set(np.unique(back)) <= set(np.unique(labels))
     alone = np.bincount(compose(records), minlength=current.n_faces)[compose(records)] == 1  # stands for itself alone
     np.testing.assert_array_equal(back[alone], labels[alone])
+    np.testing.assert_array_equal(round_trip_labels([], labels, mesh.face_areas, 3), labels)  # the input level
 
 
 @pytest.mark.parametrize("mode", COLLAPSE_MODES)

@@ -41,7 +41,7 @@ def _expected_files(out: Path) -> list[Path]:
     smoke = {name: {**COMMON["smoke"], **PER_NOTEBOOK[name]["smoke"]} for name in PER_NOTEBOOK}
     results = ["table1_psb.csv", "table1_psb_runs.csv", "table2_coseg.csv", "table3_human.csv", "table4_ablation.csv",
                "table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv", "fig4_attention.csv",
-               "fig4_round_trip.csv", "claims_ledger.csv"]
+               "fig4_test_meshes.csv", "claims_ledger.csv"]
     results += [name.replace(".ipynb", ".json") for name in PER_NOTEBOOK]
     figures = ["table3_human.png", "table4_ablation.png", "fig12_features.png", "fig12_renders.png", "fig4_attention.png",
                "fig4_attention_paper.png", "fig5_8_predictions.png", "fig10_modes.png", "explore_levels.png", "explore_labels.png",
