@@ -111,7 +111,7 @@ class NotebookRun:
         return pretrained.of_run(result["key"])
 
     def has_model(self, result: dict) -> bool:
-        """Whether the model of a result is on this machine or shipped with the package."""
+        """Whether the model of a result is here: in the store, among the figures' committed models, or shipped."""
         return self.model_file(result) is not None
 
     def load_model(self, result: dict) -> Segmenter:
