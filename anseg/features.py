@@ -19,27 +19,22 @@ columns (see :func:`feature_names`):
             ``gc_slog`` = sign(K) log(1 + |K|) and ``gc_rank``, the signed
             rank (positive K ranked among positives into (0, 1], negative
             among negatives into [-1, 0), flat faces 0).
-``sdf``     Shape Diameter Function (Shapira et al. 2008): from each face's
-            centroid, rays spread evenly over a cone (120 degrees) around the
-            inward normal; misses and hits that enter a surface from outside
-            are dropped, rays further than one standard deviation from the
-            face's median rejected, the rest averaged with cosine weights.
+``sdf``     Shape Diameter Function (Shapira et al. 2008; :mod:`anseg.sdf`):
+            the cosine-weighted mean length of the rays cast from each face's
+            centroid over a cone (120 degrees) around the inward normal.
             Normals are taken outward (flipped when the signed volume is
             negative). ``sdf`` is the absolute value, ``sdf_lognorm``
             Shapira's log-normalisation log(1 + 4 s) / log 5 of the per-mesh
             robust (1st-99th percentile) min-max scaled value s.
-``agd``     Average Geodesic Distance: heat-method distances (potpourri3d)
-            from sources placed by farthest-point sampling, each weighted by
-            the surface area nearest to it (a stratified quadrature of the
-            area integral, far less noisy than random sources). ``agd`` is
-            the absolute value, ``agd_rel`` = (agd - min) / (max - min) per
-            mesh: 0 at the geodesic centre, 1 at the farthest extremity.
+``agd``     Average Geodesic Distance (:mod:`anseg.geodesic`): the
+            area-weighted mean heat-method distance to the rest of the shape.
+            ``agd`` is the absolute value, ``agd_rel`` = (agd - min) /
+            (max - min) per mesh: 0 at the geodesic centre, 1 at the farthest
+            extremity.
 ``smooth``  (optional, not in :data:`DEFAULT_GROUPS`) ``sdf``, ``gc_slog``
             and ``agd`` diffused over the surface at a few geodesic radii
-            (one implicit heat step each; radius r means diffusion time
-            r^2 / 4, the spread of a 2-D heat kernel of root-mean-square
-            radius r), so a face sees its wide neighbourhood. Cheap once
-            its inputs exist (about 0.15 s on 25K faces); a per-face
+            (:mod:`anseg.diffusion`), so a face sees its wide neighbourhood.
+            Cheap once its inputs exist (about 0.15 s on 25K faces); a per-face
             gradient-boosting probe on PSB split 0 gained 2 to 6 points of
             accuracy with it (Teddy, Airplane, Human, Chair).
 ``hks``     (optional) the Heat Kernel Signature (Sun, Ovsjanikov and
@@ -81,10 +76,9 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields
-from functools import cached_property, partial
+from functools import cached_property
 from pathlib import Path
 
 import numba
@@ -92,10 +86,10 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from anseg.cache import atomic_write, cache_dir, read_checked_array, write_checked_array
-from anseg import proxy, rays
+from anseg import diffusion, geodesic, proxy, sdf
 from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
-from anseg.spectral import SPECTRUM_PAIRS, factor_spd, laplacian_eigenpairs
+from anseg.spectral import SPECTRUM_PAIRS, laplacian_eigenpairs
 
 FEATURES_VERSION = 1
 
@@ -126,10 +120,6 @@ _SMOOTHED = ("sdf", "gc_slog", "agd")
 # |angle defect| below this (radians) counts as flat: keeps round-off from deciding signed ranks
 _FLAT_DEFECT = 1e-9
 # SDF rays start this far inside the surface (unit-area units), off their own face's plane
-_RAY_OFFSET = 1e-7
-_RAYS_PER_CALL = 1 << 20  # bounds the memory of the ray arrays on big meshes
-DIRECT_SOLVE_MAX_VERTICES = 30_000  # the smooth group's diffusion: sparse LU up to here, multigrid-preconditioned CG above
-DIFFUSION_RTOL = 1e-10  # the iterative diffusion of the smooth group: relative residual
 PROGRESS_MIN_FACES = 100_000  # a single mesh shows a progress bar from this size (tens of seconds of work)
 POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces in all (about a second of work)
 
@@ -266,7 +256,8 @@ class _Geometry:
 
     @cached_property
     def sdf(self) -> np.ndarray:
-        return _shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions, self.settings)
+        return sdf.shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions, self.settings.sdf_rays,
+                                  self.settings.sdf_cone_degrees, _threads_allowed())
 
     def sdf_with_agd_beside(self) -> None:
         """Compute ``sdf`` and ``agd`` at once, the AGD on a second thread while the SDF's rays are cast.
@@ -280,8 +271,9 @@ class _Geometry:
         """
         if _threads_allowed() < 2 or self.mesh.n_faces > proxy.LARGE_MESH_FACES or {"sdf", "agd"} & self.__dict__.keys():
             return
-        self.__dict__["sdf"] = _shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions,
-                                               self.settings, beside=lambda: self.agd)
+        self.__dict__["sdf"] = sdf.shape_diameter(self.mesh, self.outward_normals, self.longest_edge_directions,
+                                                  self.settings.sdf_rays, self.settings.sdf_cone_degrees,
+                                                  _threads_allowed(), beside=lambda: self.agd)
 
     @cached_property
     def proxy(self) -> tuple["_Geometry", np.ndarray]:
@@ -311,7 +303,7 @@ class _Geometry:
         if self.mesh.n_faces > proxy.LARGE_MESH_FACES:
             coarse, face_of = self.proxy
             return coarse.agd[face_of]
-        per_vertex = _average_geodesic_distance(self.mesh, self.settings.agd_sources)
+        per_vertex = geodesic.average_geodesic_distance(self.mesh, self.settings.agd_sources)
         return per_vertex[self.mesh.faces].mean(axis=1)
 
     @cached_property
@@ -369,9 +361,11 @@ def _agd(g: _Geometry) -> np.ndarray:
 def _smooth(g: _Geometry) -> np.ndarray:
     signals = np.stack([g.sdf, g.gc_slog, g.agd], axis=1)
     if g.mesh.n_faces > proxy.LARGE_MESH_FACES:
-        per_radius = _diffuse_through_proxy(g, signals, g.settings.smooth_radii)
+        coarse, face_of = g.proxy
+        per_radius = diffusion.diffuse_through_proxy(g.mesh, coarse.mesh, face_of, signals, g.settings.smooth_radii,
+                                                     _threads_allowed())
     else:
-        per_radius = _diffuse_on_faces(g.mesh, signals, g.settings.smooth_radii)
+        per_radius = diffusion.diffuse_on_faces(g.mesh, signals, g.settings.smooth_radii, _threads_allowed())
     # columns ordered signal-major, as _group_columns names them
     return np.stack(per_radius, axis=2).reshape(g.mesh.n_faces, -1)
 
@@ -395,123 +389,6 @@ def _signed_rank(values: np.ndarray) -> np.ndarray:
     return out
 
 
-# ---------------------------------------------------------------------- SDF
-def _cone_pattern(n_rays: int, cone_degrees: float) -> np.ndarray:
-    """(n_rays, 3) directions spread evenly (golden-angle spiral) over a cap around +z."""
-    half = np.radians(cone_degrees) / 2.0
-    i = np.arange(n_rays) + 0.5
-    cos_polar = 1.0 - i / n_rays * (1.0 - np.cos(half))
-    sin_polar = np.sqrt(1.0 - cos_polar**2)
-    azimuth = i * np.pi * (3.0 - np.sqrt(5.0))
-    return np.stack([sin_polar * np.cos(azimuth), sin_polar * np.sin(azimuth), cos_polar], axis=1)
-
-
-def _shape_diameter(mesh: Mesh, outward: np.ndarray, tangent: np.ndarray, settings: FeatureSettings,
-                    beside: Callable[[], object] | None = None) -> np.ndarray:
-    """(F,) SDF of every face: a cone of rays from its centroid around the inward normal.
-
-    ``beside`` runs on a second thread during the first cast of rays (see
-    :meth:`_Geometry.sdf_with_agd_beside`); what it raises is raised here.
-    """
-    pattern = _cone_pattern(settings.sdf_rays, settings.sdf_cone_degrees)
-    inward = -outward
-    frame = np.stack([tangent, np.cross(inward, tangent), inward], axis=1)  # (F, 3 axes, 3)
-    cast = (rays.embree_caster(mesh, _threads_allowed()) if mesh.n_faces > proxy.LARGE_MESH_FACES
-            else partial(rays.first_hits, rays.build_bvh(mesh.vertices, mesh.faces)))
-    n_faces, n_rays = mesh.n_faces, len(pattern)
-    lengths = np.full((n_faces, n_rays), np.nan)
-    chunk = max(1, _RAYS_PER_CALL // n_rays)
-    for start in range(0, n_faces, chunk):
-        rows = np.arange(start, min(start + chunk, n_faces))
-        directions = np.einsum("rk,fkd->frd", pattern, frame[rows]).reshape(-1, 3)
-        origins = np.repeat(mesh.face_centroids[rows] + _RAY_OFFSET * inward[rows], n_rays, axis=0)
-        if beside is None:
-            hit_face, t = cast(origins, directions)
-        else:
-            with ThreadPoolExecutor(1) as pool:
-                job = pool.submit(beside)
-                hit_face, t = cast(origins, directions)
-                job.result()
-            beside = None
-        hit = (hit_face >= 0) & (hit_face != np.repeat(rows, n_rays))
-        # a ray from inside leaves through a surface facing along it; a front-facing hit means it started outside
-        leaving = np.zeros_like(hit)
-        leaving[hit] = (outward[hit_face[hit]] * directions[hit]).sum(axis=1) > 0
-        lengths[rows] = np.where(hit & leaving, t, np.nan).reshape(-1, n_rays)
-    return _robust_ray_mean(lengths, pattern[:, 2])
-
-
-def _robust_ray_mean(lengths: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Cosine-weighted mean of the rays within one standard deviation of each face's median; misses are NaN."""
-    hits = np.isfinite(lengths)
-    has_hit = hits.any(axis=1)
-    sdf = np.empty(len(lengths))
-    valid = lengths[has_hit]
-    median = np.nanmedian(valid, axis=1, keepdims=True)
-    spread = np.nanstd(valid, axis=1, keepdims=True)
-    # at least the middle rays always pass (half the rays lie on either side, so spread >= their gap / 2)
-    keep = np.abs(valid - median) <= spread * (1.0 + 1e-9) + 1e-12
-    w = np.where(keep, weights[None, :], 0.0)
-    sdf[has_hit] = (np.where(keep, valid, 0.0) * w).sum(axis=1) / w.sum(axis=1)
-    # every ray escaped (open surface): locally unbounded, so take the thickest value seen, or the unit length of the mesh
-    sdf[~has_hit] = sdf[has_hit].max() if has_hit.any() else 1.0
-    return sdf
-
-
-# ---------------------------------------------------------------------- AGD
-def _vertex_components(mesh: Mesh) -> np.ndarray:
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    f = mesh.faces
-    graph = coo_matrix((np.ones(f.size), (f.ravel(), np.roll(f, 1, axis=1).ravel())), shape=(mesh.n_vertices,) * 2)
-    return connected_components(graph, directed=False)[1]
-
-
-def _farthest_point_sources(points: np.ndarray, area: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` farthest-point samples of ``points`` (Euclidean) and the area nearest to each.
-
-    Starts at the point farthest from the area centroid, so the choice rotates with the shape.
-    """
-    centre = (points * area[:, None]).sum(axis=0) / area.sum()
-    first = int(np.argmax(np.linalg.norm(points - centre, axis=1)))
-    nearest = np.linalg.norm(points - points[first], axis=1)
-    owner = np.zeros(len(points), dtype=np.int64)
-    sources = [first]
-    for i in range(1, min(n, len(points))):
-        nxt = int(np.argmax(nearest))
-        if nearest[nxt] == 0.0:
-            break
-        d = np.linalg.norm(points - points[nxt], axis=1)
-        closer = d < nearest
-        nearest[closer] = d[closer]
-        owner[closer] = i
-        sources.append(nxt)
-    return np.asarray(sources), np.bincount(owner, area, minlength=len(sources))
-
-
-def _average_geodesic_distance(mesh: Mesh, n_sources: int) -> np.ndarray:
-    """(V,) area-weighted mean heat-method geodesic distance to the rest of the vertex's connected component."""
-    import potpourri3d as pp3d
-
-    v, f = mesh.vertices, mesh.faces
-    vertex_area = np.bincount(f.ravel(), np.repeat(mesh.face_areas / 3.0, 3), minlength=mesh.n_vertices)
-    component = _vertex_components(mesh)
-    n_components = component.max() + 1
-    component_area = np.bincount(component, vertex_area)
-    solver = pp3d.MeshHeatMethodDistanceSolver(v, f)
-    total = np.zeros(mesh.n_vertices)
-    for c in range(n_components):
-        members = np.flatnonzero(component == c) if n_components > 1 else slice(None)
-        # sources shared out by area, at least one per component (the solver leaves other components meaningless)
-        share = max(1, round(n_sources * component_area[c] / component_area.sum()))
-        local_sources, weights = _farthest_point_sources(v[members], vertex_area[members], share)
-        sources = np.arange(mesh.n_vertices)[members][local_sources]
-        for s, w in zip(sources, weights):
-            total[members] += w * solver.compute_distance(int(s))[members]
-    return total / component_area[component]
-
-
 def _heat_kernel_signature(mesh: Mesh, n_pairs: int, times: np.ndarray) -> np.ndarray:
     """(V, len(times)) log heat-trace-normalised HKS from the low end of the spectrum (module docstring)."""
     values, vectors = laplacian_eigenpairs(mesh, n_pairs)
@@ -519,105 +396,6 @@ def _heat_kernel_signature(mesh: Mesh, n_pairs: int, times: np.ndarray) -> np.nd
     signature = (vectors**2) @ decay  # (V, T)
     total_area = mesh.face_areas.sum()
     return np.log(np.maximum(signature * total_area / decay.sum(axis=0), 1e-12))
-
-
-# ---------------------------------------------------------------- smoothing
-def _diffuse_on_faces(mesh: Mesh, signals: np.ndarray, radii: Sequence[float]) -> list[np.ndarray]:
-    """Per-face ``signals`` (F, k) after implicit heat diffusion for time r^2 / 4, one (F, k) array per radius r.
-
-    Solves (M - t L) u = M x on the vertices (cotan Laplacian L, barycentric
-    mass M; half the unknowns of the face graph and the standard
-    discretisation). Faces go to vertices by area-weighted averaging and come
-    back as the mean of their corners; with barycentric masses both moves,
-    and the diffusion, keep the area integral of every signal exactly.
-    """
-    import igl
-
-    v, f = mesh.vertices, mesh.faces
-    mass = igl.massmatrix(v, f, igl.MASSMATRIX_TYPE_BARYCENTRIC)
-    corner_weight = np.repeat(mesh.face_areas / 3.0, 3)[:, None]
-    weighted = np.zeros((mesh.n_vertices, signals.shape[1]))
-    np.add.at(weighted, f.ravel(), np.repeat(signals, 3, axis=0) * corner_weight)  # M x
-    return [u[f].mean(axis=1) for u in _diffusion_solves(mass, igl.cotmatrix(v, f), weighted, radii, mesh)]
-
-
-def _diffuse_through_proxy(g: _Geometry, signals: np.ndarray, radii: Sequence[float]) -> list[np.ndarray]:
-    """:func:`_diffuse_on_faces` for a large mesh, solved on the vertices of its :attr:`_Geometry.proxy`.
-
-    Each face's value is the barycentric interpolation, at its centroid, of
-    the proxy face it collapsed into (a transfer P, F x V_proxy, rows summing
-    to one); signals go the other way by P^T, weighted by the face areas, and
-    the masses are the areas carried there, M = diag(P^T a). So constants stay
-    constant and the area integral of every signal is kept exactly, as on
-    the full mesh. The full mesh's solve grows faster than the mesh (9-20 s at
-    200K-400K faces, by multigrid CG); through the 50K-face proxy it is a
-    sparse LU of under a second. Against the full solve on PSB meshes
-    subdivided to 304K and 400K faces the columns correlate at 0.9975 or more
-    (curvature at the smallest radius, the detail finest against a proxy
-    face) and differ by a median of at most 0.9 % of their 1-99 % range
-    (under 0.1 % for the diffused SDF and AGD).
-    """
-    import igl
-    from scipy.sparse import csr_matrix, diags
-
-    coarse, face_of = g.proxy
-    corners = coarse.mesh.faces[face_of]
-    transfer = csr_matrix((_clamped_barycentric(g.mesh.face_centroids, coarse.mesh.vertices[corners]).ravel(),
-                           (np.repeat(np.arange(len(face_of)), 3), corners.ravel())),
-                          shape=(len(face_of), coarse.mesh.n_vertices))
-    area = g.mesh.face_areas
-    laplacian = igl.cotmatrix(coarse.mesh.vertices, coarse.mesh.faces)
-    solutions = _diffusion_solves(diags(transfer.T @ area), laplacian, transfer.T @ (signals * area[:, None]), radii, g.mesh)
-    return [transfer @ u for u in solutions]
-
-
-def _clamped_barycentric(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(N, 3) barycentric weights of each point (N, 3) on its triangle's plane (N, 3 corners, 3), clamped into the triangle.
-
-    libigl's coordinates; a degenerate triangle (no finite coordinates) shares the weight between its corners.
-    """
-    import igl
-
-    weights = igl.barycentric_coordinates(points, triangles[:, 0], triangles[:, 1], triangles[:, 2])
-    weights = np.where(np.isfinite(weights).all(axis=1, keepdims=True), np.maximum(weights, 0.0), 1.0 / 3.0)
-    return weights / weights.sum(axis=1, keepdims=True)
-
-
-def _diffusion_solves(mass, laplacian, rhs: np.ndarray, radii: Sequence[float], mesh: Mesh) -> list[np.ndarray]:
-    """The vertex solutions u (V, k) of (M - r^2/4 L) u = rhs, one per radius r; ``mesh`` only names a failure.
-
-    The system is symmetric positive definite. Up to
-    :data:`DIRECT_SOLVE_MAX_VERTICES` vertices a sparse LU factorisation
-    solves it (0.12 s at 20K faces, half the time of the iterative solve);
-    its fill grows much faster than the mesh (20 s per radius at 82K faces,
-    more than 10 minutes at 330K), so more vertices (an open or fragmented
-    mesh of up to :data:`anseg.proxy.LARGE_MESH_FACES` faces, or its proxy) are solved by
-    conjugate gradients preconditioned by smoothed-aggregation algebraic
-    multigrid (pyamg) to a relative residual of :data:`DIFFUSION_RTOL`, each
-    radius starting from the last one's solution: at 330K faces 4 s where
-    Jacobi-preconditioned CG took 14 s and sparse Cholesky (cholespy) 9 s,
-    for the same values as the LU to a relative 1e-10.
-    """
-    systems = [(mass - (radius**2 / 4.0) * laplacian).tocsr() for radius in radii]
-    if rhs.shape[0] <= DIRECT_SOLVE_MAX_VERTICES:
-        # SuperLU lets go of the GIL for part of its work: the radii factor side by side where threads are allowed
-        with ThreadPoolExecutor(max(1, min(len(systems), _threads_allowed()))) as pool:
-            factors = list(pool.map(factor_spd, [system.tocsc() for system in systems]))
-        return [lu.solve(rhs) for lu in factors]
-    import pyamg  # here: small meshes, and the GPU machine that trains on them, need no pyamg
-
-    out = []
-    solution = np.zeros_like(rhs)
-    for system in systems:
-        multigrid = pyamg.smoothed_aggregation_solver(system, symmetry="symmetric")
-        for column in range(rhs.shape[1]):
-            residuals = []
-            solution[:, column] = multigrid.solve(rhs[:, column], x0=solution[:, column], tol=DIFFUSION_RTOL,
-                                                  accel="cg", maxiter=1000, residuals=residuals)
-            if residuals[-1] > DIFFUSION_RTOL * max(residuals[0], np.linalg.norm(rhs[:, column])):
-                raise MeshError(f"the multi-scale diffusion did not converge on {mesh!r}; please report the mesh")
-        out.append(solution.copy())
-    return out
 
 
 # ------------------------------------------------------------------ public

@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
 
-from anseg import cache, collapse, features, proxy
+from anseg import cache, collapse, diffusion, features, geodesic, proxy
 from anseg.mesh import Mesh, MeshError
 from conftest import grid_mesh
 
@@ -93,7 +93,7 @@ def test_an_agd_failure_beside_the_ray_cast_is_raised(monkeypatch):
         raise RuntimeError("heat method failed")
 
     monkeypatch.setattr(features.numba, "get_num_threads", lambda: 2)
-    monkeypatch.setattr(features, "_average_geodesic_distance", fail)
+    monkeypatch.setattr(geodesic, "average_geodesic_distance", fail)
     with pytest.raises(RuntimeError, match="heat method failed"):
         features.compute(blob(), ("sdf", "agd"), cache=False, **FAST)
 
@@ -226,8 +226,8 @@ def test_diffusion_by_multigrid_cg_matches_a_direct_solve(monkeypatch):
     sphere = trimesh.creation.icosphere(subdivisions=3)
     mesh = Mesh(sphere.vertices * [2.0, 1.0, 1.0], sphere.faces).normalized()
     signals = np.random.default_rng(0).random((mesh.n_faces, 2))
-    monkeypatch.setattr(features, "DIRECT_SOLVE_MAX_VERTICES", 0)  # the iterative path, as on a large mesh
-    got = features._diffuse_on_faces(mesh, signals, [0.05, 0.3])
+    monkeypatch.setattr(diffusion, "DIRECT_SOLVE_MAX_VERTICES", 0)  # the iterative path, as on a large mesh
+    got = diffusion.diffuse_on_faces(mesh, signals, [0.05, 0.3])
     mass = igl.massmatrix(mesh.vertices, mesh.faces, igl.MASSMATRIX_TYPE_BARYCENTRIC)
     laplacian = igl.cotmatrix(mesh.vertices, mesh.faces)
     corner = np.repeat(mesh.face_areas / 3.0, 3)[:, None]
@@ -309,7 +309,8 @@ def test_smooth_group_of_a_large_mesh_diffuses_on_the_proxy_keeping_constants_an
     geometry = features._Geometry(mesh, features.FeatureSettings(**FAST))
     area = geometry.mesh.face_areas
     signal = np.stack([np.ones(mesh.n_faces), geometry.mesh.face_centroids[:, 0] ** 2], axis=1)
-    for block in features._diffuse_through_proxy(geometry, signal, (0.05, 0.3)):
+    coarse, face_of = geometry.proxy
+    for block in diffusion.diffuse_through_proxy(geometry.mesh, coarse.mesh, face_of, signal, (0.05, 0.3)):
         np.testing.assert_allclose(block[:, 0], 1.0, rtol=1e-9)
         np.testing.assert_allclose((block[:, 1] * area).sum(), (signal[:, 1] * area).sum(), rtol=1e-9)
         assert block[:, 1].std() < signal[:, 1].std()
