@@ -17,14 +17,16 @@ Modes compared:
 With ``--model MODEL.pt`` (a nonuniform model trained on one PSB category)
 the study runs instead on that category's split-0 TRAINING meshes with the
 model's own attention, recomputed on every level as ``segment`` does, with
-and without ``once_per_pass`` collapsing; it also reports how many input
-faces the largest coarse face stands for (how far a region was wiped out).
+the model's settings and then with each ``--set`` variant of them (e.g.
+``once_per_pass=true``, or another density range); it also reports how many
+input faces the largest coarse face stands for (how far a region was wiped
+out).
 
 Usage::
 
     ANSEG_DATA=/work/shared/datasets ANSEG_CACHE=/tmp/anseg-cache \\
         python benchmarks/roundtrip.py [--categories Teddy Human] [--all-meshes] [--out roundtrip.csv]
-    python benchmarks/roundtrip.py --model models/<key>.pt --categories Human
+    python benchmarks/roundtrip.py --model models/<key>.pt --categories Human --set once_per_pass=true
 """
 
 from __future__ import annotations
@@ -65,21 +67,23 @@ def round_trip(item, mode: str, cycles: int, ratio: float, seed: int) -> tuple[n
     return round_trip_labels(records, item.labels, areas, n_classes), missed
 
 
-def learned_round_trip(item, model, once_per_pass: bool) -> tuple[np.ndarray, int]:
-    """Fine labels after the trip through the levels the model's attention builds, and the largest coarse face."""
-    from dataclasses import replace
-
+def learned_round_trip(item, model, config) -> tuple[np.ndarray, int]:
+    """Fine labels after the trip through the levels the model's attention builds under ``config``, and the largest coarse face."""
     from anseg.pipeline import build_levels
 
     n_classes = len(item.label_names)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CollapseWarning)
-        levels = build_levels(item.mesh, model, replace(model.config, once_per_pass=once_per_pass))
+        levels = build_levels(item.mesh, model, config)
     records = [level.record for level in levels[:-1]]
     return round_trip_labels(records, item.labels, item.mesh.face_areas, n_classes), int(np.bincount(compose(records)).max())
 
 
-def learned_study(model_path: str, categories) -> None:
+def learned_study(model_path: str, categories, variants: list[str]) -> None:
+    """The round trip through the model's own hierarchy, then through each variant of its collapse settings."""
+    from dataclasses import replace
+
+    from anseg.configs import parse_overrides
     from anseg.pipeline import Segmenter
 
     model = Segmenter.load(model_path)
@@ -87,11 +91,12 @@ def learned_study(model_path: str, categories) -> None:
         items = datasets.load("psb", category=category, split="train", split_index=0, progress=False)
         print(f"{category}: {len(items)} training meshes (split 0), the model's attention, {model.config.cycles} cycles "
               f"at ratio {model.config.ratio}, no smoothing")
-        for once in (False, True):
-            trips = [learned_round_trip(item, model, once) for item in items]
+        for variant in ["", *variants]:
+            segment_overrides, _ = parse_overrides(variant)
+            trips = [learned_round_trip(item, model, replace(model.config, **segment_overrides)) for item in items]
             scores = pooled_accuracy([t[0] for t in trips], [i.labels for i in items], [i.mesh.face_areas for i in items])
             largest = [t[1] for t in trips]
-            print(f"  once_per_pass={once!s:<5}  round trip {100 * scores['unit_area']:6.2f} %   input faces behind the "
+            print(f"  {variant or 'as trained':<40} round trip {100 * scores['unit_area']:6.2f} %   input faces behind the "
                   f"largest coarse face: median {np.median(largest):.0f}, max {max(largest)}", flush=True)
 
 
@@ -105,9 +110,12 @@ def main(argv=None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", help="write the per-category table as CSV here")
     parser.add_argument("--model", help="study a trained nonuniform model's attention on its training meshes instead")
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE,...",
+                        help="with --model: also collapse with these segmentation settings (repeatable), e.g. "
+                             "once_per_pass=true or density_range=8,priority=weighted")
     args = parser.parse_args(argv)
     if args.model:
-        learned_study(args.model, args.categories or ["Human"])
+        learned_study(args.model, args.categories or ["Human"], args.set)
         return
 
     sets = [("psb", c) for c in (args.categories if args.categories is not None else datasets.PSB_CATEGORIES)]
