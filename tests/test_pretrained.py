@@ -165,6 +165,22 @@ def test_the_shipped_psb_human_model_reproduces_its_table_i_run(data_root, tmp_p
     assert metrics.accuracy(labels, item.labels, item.mesh.face_areas) == expected  # float for float
 
 
+@pytest.mark.parametrize("name", pretrained.names())
+def test_every_shipped_model_gives_its_runs_labels_on_a_test_mesh(name, data_root):
+    """Each card's model, loaded by name, scores its run's first test mesh exactly as the stored run did."""
+    import json
+
+    from anseg import metrics
+    from anseg.pipeline import Segmenter, segment
+
+    stored = json.loads((REPO / "results" / "runs" / f"{pretrained.card(name)['run']}.json").read_text())
+    item = datasets.load(stored["dataset"], stored.get("category"), "test", stored["split_index"], root=data_root,
+                         progress=False)[0]
+    expected = next(m["accuracy"] for m in stored["per_mesh"] if m["name"] == item.name)
+    labels = segment(item.mesh, Segmenter.pretrained(name)).labels
+    assert metrics.accuracy(labels, item.labels, item.mesh.face_areas) == expected  # float for float
+
+
 def test_explore_uses_a_shipped_model_only_under_its_configuration(shipped):
     from anseg.experiments import explore_model_name
 
