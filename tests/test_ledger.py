@@ -53,6 +53,10 @@ def test_verdicts_follow_the_numbers(results):
     table1.loc["mean", over] = 95.29 - table1.loc["mean", "ours, std over splits"] / 2  # short by less than the spread
     table1.to_csv(results / "table1_psb.csv")
     assert verdict("PSB accuracy") == ledger.HOLDS
+    table1["paper configuration, unit area (split 0)"] = 50.0  # the plain reading's column, every category run
+    table1.to_csv(results / "table1_psb.csv")
+    evidence = ledger.ledger(results).set_index("claim").loc["PSB accuracy", "our evidence"]
+    assert evidence.endswith("the paper's method as written (paper configuration, unit area (split 0)): 50.00")
 
 
 def test_a_missing_result_or_synthetic_data_cannot_decide(results):
