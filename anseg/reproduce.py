@@ -51,6 +51,12 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
     executed_dir, results_root = output_dirs(kind, out)
     executed_dir.mkdir(parents=True, exist_ok=True)
     names = selected_notebooks(only)
+    if kind == "real" and "OMP_NUM_THREADS" not in os.environ:
+        # the runs trained on one thread; with more, the clustering and the matrix products can round otherwise and
+        # a mesh's hierarchy change (seen on one Fig. 4 mesh), so the kernels segment as the runs did
+        os.environ["OMP_NUM_THREADS"] = "1"
+        print("[anseg] OMP_NUM_THREADS=1 for the notebooks' kernels (the stored runs' setting); set it to choose",
+              flush=True)
     failed = 0
     for name in names:
         # relative to the notebooks' folder (their working directory): executed notebooks name no machine's paths

@@ -173,6 +173,22 @@ def test_a_failed_notebook_never_replaces_its_executed_copy(tmp_path, monkeypatc
     assert executed.read_text() == "new run" and not (executed.parent / reproduce.failed_name(name)).exists()
 
 
+def test_real_notebooks_run_on_one_thread_unless_told_otherwise(tmp_path, monkeypatch):
+    import papermill
+
+    from anseg import reproduce
+
+    seen = []
+    monkeypatch.setattr(papermill, "execute_notebook",
+                        lambda source, target, **kwargs: seen.append(os.environ.get("OMP_NUM_THREADS")) or Path(target).touch())
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    reproduce.run("real", only=["explore"], out=tmp_path)
+    assert seen == ["1"]
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    reproduce.run("real", only=["explore"], out=tmp_path)
+    assert seen == ["1", "2"]
+
+
 def test_status_counts_the_stored_runs_and_the_training_left(tmp_path, capsys):
     from anseg.experiments import ResultStore, output_dirs
     from anseg.reproduce import main, status
