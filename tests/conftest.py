@@ -32,6 +32,13 @@ def psb_sample(data_root):
     return {c: datasets.load("psb", category=c, split="test", root=data_root)[:2] for c in ("Teddy", "Airplane")}
 
 
+def screenshot_folder(default: Path) -> Path:
+    """Where a browser test keeps its screenshots: ``$ANSEG_SCREENSHOTS`` when set, else ``default`` (made if need be)."""
+    folder = Path(os.environ.get("ANSEG_SCREENSHOTS", default))
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
 def grid_mesh(n: int = 4, closed: bool = False) -> Mesh:
     """A small regular mesh: an n x n grid of squares split into triangles, or a closed octahedron-like sphere."""
     if closed:

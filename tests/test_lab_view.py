@@ -28,6 +28,7 @@ import torch
 
 from anseg import datasets
 from anseg.mesh import save_mesh
+from conftest import screenshot_folder
 from anseg.pipeline import SegmentConfig, Segmenter, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
@@ -144,8 +145,7 @@ def lab(tmp_path_factory):
 def _keep(name: str, picture: np.ndarray, folder: Path) -> Path:
     from PIL import Image
 
-    out = Path(os.environ.get("ANSEG_SCREENSHOTS", folder))
-    out.mkdir(parents=True, exist_ok=True)
+    out = screenshot_folder(folder)
     Image.fromarray(picture).save(out / name)
     return out / name
 

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +14,7 @@ from anseg import datasets, viewer
 from anseg.pipeline import SegmentConfig, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
+from conftest import screenshot_folder
 
 CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None)
 
@@ -69,8 +68,7 @@ def _screenshot(path, name: str, folder):
     """Headless Chromium's picture of a page, kept in ``$ANSEG_SCREENSHOTS`` when that is set."""
     from PIL import Image
 
-    out = Path(os.environ.get("ANSEG_SCREENSHOTS", folder))
-    out.mkdir(parents=True, exist_ok=True)
+    out = screenshot_folder(folder)
     subprocess.run([CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
                     "--virtual-time-budget=8000", "--window-size=1200,800", f"--screenshot={out / name}", path.as_uri()],
                    capture_output=True, timeout=120, check=True)
