@@ -120,6 +120,26 @@ def _ablation_order(results: Path) -> Verdict:
     return Verdict(evidence, HOLDS if holds else FAILS)
 
 
+def fig4_summary(meshes):
+    """From Fig. 4's per-mesh table (``fig4_test_meshes.csv``): the two figures its claims are read by.
+
+    The attention's mean AUC for near-boundary faces over the test meshes,
+    by model and level of the nonuniform hierarchies (a Series), and the
+    mean share of the area whose true label survives the trip to the
+    coarsest level and back, by model and downsampling (a DataFrame).
+    """
+    auc = meshes[meshes.downsampling == "nonuniform"].groupby(["model", "level"])["attention AUC, near vs elsewhere"].mean()
+    coarsest = meshes[meshes.level == meshes.level.max()]
+    return auc, coarsest.groupby(["model", "downsampling"])["labels kept (%)"].mean().unstack()
+
+
+def _fig4_test_meshes(results: Path):
+    meshes = _csv(results, "fig4_test_meshes.csv")
+    if PLAIN_READING not in set(meshes.model):
+        raise MissingResult("fig4_test_meshes.csv holds no run of the paper's configuration")
+    return meshes
+
+
 def _attention_at_junctions(results: Path) -> Verdict:
     """Whether attention trained by the class loss alone (the paper's) marks the faces near label boundaries.
 
@@ -129,14 +149,11 @@ def _attention_at_junctions(results: Path) -> Verdict:
     (holds when above 0.5 on every level). Our default's attention is trained
     towards boundaries, so it marks them by construction: shown beside it.
     """
-    meshes = _csv(results, "fig4_test_meshes.csv")
-    auc = meshes[(meshes.downsampling == "nonuniform") & (meshes.level > 0)].groupby(["model", "level"])[
-        "attention AUC, near vs elsewhere"].mean()
-    if PLAIN_READING not in auc.index.get_level_values("model"):
-        raise MissingResult("fig4_test_meshes.csv holds no run of the paper's configuration")
-    n = meshes.mesh.nunique()
-    evidence = (f"mean AUC of near-boundary faces over {n} test meshes, coarse levels of the nonuniform hierarchy: the "
-                f"paper's unsupervised attention {', '.join(f'{a:.2f}' for a in auc[PLAIN_READING])}; ours (supervised) "
+    meshes = _fig4_test_meshes(results)
+    auc = fig4_summary(meshes)[0].drop(0, level="level")  # level 0 is the input mesh, not a collapse
+    evidence = (f"mean AUC of near-boundary faces over {meshes.mesh.nunique()} test meshes, coarse levels of the "
+                f"nonuniform hierarchy: the paper's unsupervised attention "
+                f"{', '.join(f'{a:.2f}' for a in auc[PLAIN_READING])}; ours (supervised) "
                 f"{', '.join(f'{a:.2f}' for a in auc['ours'])}")
     return Verdict(evidence, HOLDS if (auc[PLAIN_READING] > 0.5).all() else FAILS)
 
@@ -220,10 +237,8 @@ def _labels_survive(results: Path) -> Verdict:
     meshes, for the nonuniform hierarchy of the ``paper`` configuration's
     model against the uniform one; ours is shown beside it.
     """
-    meshes = _csv(results, "fig4_test_meshes.csv")
-    kept = meshes[meshes.level == meshes.level.max()].groupby(["model", "downsampling"])["labels kept (%)"].mean().unstack()
-    if PLAIN_READING not in kept.index:
-        raise MissingResult("fig4_test_meshes.csv holds no run of the paper's configuration")
+    meshes = _fig4_test_meshes(results)
+    kept = fig4_summary(meshes)[1]
     evidence = "; ".join(f"{who}: nonuniform {kept.loc[who, 'nonuniform']:.2f} %, uniform {kept.loc[who, 'uniform']:.2f} %"
                          for who in kept.index) + (f" of the area of {meshes.mesh.nunique()} test meshes keeps its label "
                                                    "through the coarsest level and back")
