@@ -55,15 +55,17 @@ def round_trip(item, mode: str, cycles: int, ratio: float, seed: int) -> tuple[n
     n_classes = len(item.label_names)
     areas = item.mesh.face_areas
     rng = np.random.default_rng(seed)
-    records, current, current_labels, missed = [], item.mesh, item.labels, 0
+    records, current, missed = [], item.mesh, 0
     for cycle in range(cycles):
-        scores = oracle_scores(current, current_labels, rng) if mode == "nonuniform" else None
+        scores = None
+        if mode == "nonuniform":  # the oracle reads the labels of the level it collapses
+            labels = pool_labels(records, item.labels, areas, n_classes) if records else item.labels
+            scores = oracle_scores(current, labels, rng)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", CollapseWarning)
             current, record = downsample(current, scores, ratio=ratio, mode=mode, seed=seed + cycle)
         missed += not record.reached_target
         records.append(record)
-        current_labels = pool_labels(records, item.labels, areas, n_classes)
     return round_trip_labels(records, item.labels, areas, n_classes), missed
 
 
