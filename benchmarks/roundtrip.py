@@ -44,7 +44,6 @@ from anseg.collapse import (COLLAPSE_MODES, CollapseWarning, compose, downsample
 from anseg.metrics import pooled_accuracy
 
 
-
 def oracle_scores(mesh, labels, rng) -> np.ndarray:
     """High near label boundaries: minus the rings to another label, jittered below one ring to break ties."""
     return -rings_to_other_label(mesh, labels) + 0.5 * rng.random(mesh.n_faces)

@@ -122,7 +122,6 @@ def test_trained_on_names_the_gpu_or_the_cpu_count():
     assert trained_on({"environment": {"cuda": None, "cpus": 2}}) == "CPU, 2 cores"
 
 
-
 def test_settings_added_later_change_the_key_only_away_from_their_old_value():
     # at the old value they stay out of the key (the pinned key above); any other value is a new experiment
     base = _v1_human()
