@@ -70,13 +70,15 @@ class Arm:
     def parse(cls, text: str) -> "Arm":
         """``"name:field=value,train.field=value"``, overrides of the defaults.
 
-        An arm named after a configuration of :mod:`anseg.configs` (``paper``)
-        starts from that configuration: ``"paper:combine=all"``.
+        An arm named after a configuration of :mod:`anseg.configs` (``paper``),
+        or after one and a variant (``paper/relative``), starts from that
+        configuration: ``"paper:combine=all"``, ``"paper/relative:local_scale=relative"``.
         """
         name, _, spec = text.partition(":")
         if not name:
             raise ValueError(f"arm {text!r} has no name; write name:field=value,...")
-        segment, train = overrides(name if name in NAMED else "default", spec)
+        base = name.split("/")[0]
+        segment, train = overrides(base if base in NAMED else "default", spec)
         return cls(name, segment, train)
 
     def configs(self, epochs: int | None = None) -> tuple[SegmentConfig, TrainConfig]:

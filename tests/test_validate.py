@@ -31,6 +31,14 @@ def test_overrides_are_typed_like_the_defaults():
     assert Arm.parse("default") == Arm("default")
 
 
+def test_an_arm_named_config_slash_variant_starts_from_that_configuration():
+    plain, variant = Arm.parse("paper"), Arm.parse("paper/relative:local_scale=relative")
+    assert variant.name == "paper/relative"
+    assert variant.segment == {**plain.segment, "local_scale": "relative"}
+    assert variant.train == plain.train and plain.train["attention_weight"] == 0.0
+    assert Arm.parse("other/relative:local_scale=relative").segment == {"local_scale": "relative"}
+
+
 def test_folds_partition_the_training_meshes():
     fold = fold_of(12, 3)
     assert np.bincount(fold).tolist() == [4, 4, 4]
