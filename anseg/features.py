@@ -81,12 +81,11 @@ from dataclasses import asdict, dataclass, fields
 from functools import cached_property
 from pathlib import Path
 
-import numba
 import numpy as np
 from tqdm.auto import tqdm
 
 from anseg.cache import atomic_write, cache_dir, read_checked_array, write_checked_array
-from anseg import diffusion, geodesic, proxy, sdf
+from anseg import diffusion, geodesic, proxy, rays, sdf
 from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
 from anseg.spectral import SPECTRUM_PAIRS, laplacian_eigenpairs
@@ -126,7 +125,7 @@ POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces i
 
 def _threads_allowed() -> int:
     """How many threads this process may compute with: numba's count, which parallel workers set to 1."""
-    return max(1, numba.get_num_threads())
+    return max(1, rays.numba_threads())
 
 
 @dataclass(frozen=True)

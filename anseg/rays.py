@@ -11,8 +11,10 @@ distance along the (unit) direction.
 
 from __future__ import annotations
 
+import sys
 from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -100,8 +102,28 @@ def first_hits(bvh: tuple, origins: np.ndarray, directions: np.ndarray) -> tuple
     """Face index (-1 for a miss) and distance (inf for a miss) of each ray's first hit, either side of a face."""
     hit_face = np.empty(len(origins), dtype=np.int64)
     hit_t = np.empty(len(origins))
+    numba_threads()  # the kernel would start numba's threads otherwise, and change torch's count
     _cast_rays(np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64), *bvh, hit_face, hit_t)
     return hit_face, hit_t
+
+
+def numba_threads() -> int:
+    """numba's thread count; starts numba's threading layer with torch's thread count kept.
+
+    numba's OpenMP layer, when it starts (the first parallel kernel or
+    thread query of the process), sets the process's OpenMP thread count to
+    numba's own (every core unless ``NUMBA_NUM_THREADS`` says otherwise,
+    whatever ``OMP_NUM_THREADS`` says), and torch's matrix products read that
+    count: without this, computing the SDF (a cold feature cache) would
+    change how the network rounds later in the same process, and with it a
+    hierarchy. Later kernels leave the count alone.
+    """
+    torch = sys.modules.get("torch")
+    threads = torch.get_num_threads() if torch is not None else None
+    count = numba.get_num_threads()
+    if torch is not None and torch.get_num_threads() != threads:
+        torch.set_num_threads(threads)
+    return count
 
 
 @njit(cache=True, inline="always")

@@ -81,9 +81,9 @@ def test_features_are_deterministic():
 
 def test_agd_beside_the_ray_cast_gives_the_values_of_one_thread(monkeypatch):
     mesh = blob()
-    monkeypatch.setattr(features.numba, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(features, "_threads_allowed", lambda: 2)
     overlapped = features.compute(mesh, features.DEFAULT_GROUPS, cache=False, **FAST)
-    monkeypatch.setattr(features.numba, "get_num_threads", lambda: 1)
+    monkeypatch.setattr(features, "_threads_allowed", lambda: 1)
     one_thread = features.compute(mesh, features.DEFAULT_GROUPS, cache=False, **FAST)
     np.testing.assert_array_equal(overlapped, one_thread)
 
@@ -92,7 +92,7 @@ def test_an_agd_failure_beside_the_ray_cast_is_raised(monkeypatch):
     def fail(*args):
         raise RuntimeError("heat method failed")
 
-    monkeypatch.setattr(features.numba, "get_num_threads", lambda: 2)
+    monkeypatch.setattr(features, "_threads_allowed", lambda: 2)
     monkeypatch.setattr(geodesic, "average_geodesic_distance", fail)
     with pytest.raises(RuntimeError, match="heat method failed"):
         features.compute(blob(), ("sdf", "agd"), cache=False, **FAST)

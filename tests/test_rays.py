@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
+import numba
 import numpy as np
+import pytest
 
 from anseg import rays
 from test_features import blob
@@ -32,3 +38,18 @@ def test_ray_caster_on_a_single_triangle():
     np.testing.assert_array_equal(face, [0, 0, -1, -1])
     np.testing.assert_allclose(t[:2], [1.0, 2.0])
     assert np.isinf(t[2:]).all()
+
+
+def test_casting_rays_leaves_torch_with_the_threads_it_had():
+    # A fresh process told to use one thread: numba's OpenMP layer would raise torch's count to numba's (the cores).
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread on this machine, so it cannot change torch's count")
+    script = ("import numpy as np, torch\n"
+              "from anseg import rays\n"
+              "torch.ones(64, 64) @ torch.ones(64, 64)\n"  # the network ran before this mesh's features
+              "bvh = rays.build_bvh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))\n"
+              "rays.first_hits(bvh, np.full((5000, 3), [0.2, 0.2, 1.0]), np.tile([0.0, 0, -1], (5000, 1)))\n"
+              "print(torch.get_num_threads())\n")
+    env = {**{k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}, "OMP_NUM_THREADS": "1"}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1"]
