@@ -20,6 +20,11 @@ model's settings, e.g. another collapse priority), and for every level this prin
   the largest over meshes of the level's largest face over the largest face
   of the uniform hierarchy of the same mesh and level (the issue's giant-face
   criterion: at most 8);
+* ``own``: the share of the level's area that the network's prediction on
+  that level alone labels as the level's pooled ground truth (each face the
+  area majority of the input faces it stands for): how well the classifier
+  reads the level, before anything is carried back to the input faces
+  (a model with coarse context is read without it here);
 * ``auc``: the ROC AUC of the attention for faces within 2 rings of another
   label (the pooled ground truth) against the rest, on the levels that are
   collapsed (0.5: attention says nothing about boundaries).
@@ -34,12 +39,14 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import torch
 from sklearn.metrics import roc_auc_score
 
 from anseg import datasets
 from anseg.collapse import CollapseWarning, compose, rings_to_other_label
 from anseg.configs import parse_overrides
-from anseg.pipeline import Segmenter, build_levels, level_labels
+from anseg.metrics import accuracy
+from anseg.pipeline import Segmenter, build_levels, level_labels, model_inputs
 from anseg.comparison import csv_text
 
 GIANT_FACTOR = 8
@@ -64,10 +71,14 @@ def level_statistics(item, model: Segmenter, config) -> list[dict]:
     for index, (level, stands_for, target) in enumerate(zip(levels, counts, level_labels(levels, item.labels, model.n_classes))):
         raw = level.feature_matrix(index, len(levels), config.local_scale)
         largest = np.abs(model.standardize(raw)).max(axis=1)
+        model.network.eval()
+        with torch.no_grad():
+            predicted = model(**model_inputs(model, level, index, len(levels), "cpu")).logits.argmax(dim=1).numpy()
         mean = stands_for.sum() / level.mesh.n_faces
         row = {"level": index, "faces": level.mesh.n_faces, "z99": float(np.percentile(largest, 99)),
                "zmax": float(largest.max()), "giant": int(stands_for.max()),
-               "giant_share": float(stands_for[stands_for > GIANT_FACTOR * mean].sum() / stands_for.sum()), "auc": np.nan}
+               "giant_share": float(stands_for[stands_for > GIANT_FACTOR * mean].sum() / stands_for.sum()),
+               "own": accuracy(predicted, target, level.mesh.face_areas), "auc": np.nan}
         if level.attention is not None:
             band = rings_to_other_label(level.mesh, target) <= BAND_RINGS
             if 0 < band.sum() < len(band):
@@ -106,8 +117,6 @@ def main(argv=None) -> None:
     parser.add_argument("--render", type=Path, help="also render the first cell's first held-out mesh's hierarchies (PNG)")
     args = parser.parse_args(argv)
 
-    import torch
-
     torch.set_num_threads(1)
     table = []
     for path in args.cells:
@@ -128,10 +137,10 @@ def main(argv=None) -> None:
                 table.append({"arm": cell["arm"], "category": cell["category"], "hierarchy": name, "level": index, **values})
         if args.render and path == args.cells[0]:
             render_hierarchies(held_out[0], model, variants, args.render)
-    print(f"{'arm':<16} {'category':<10} {'hierarchy':<18} lvl  faces    z99     zmax   giant  share  auc  vs uniform")
+    print(f"{'arm':<16} {'category':<10} {'hierarchy':<18} lvl  faces    z99     zmax   giant  share  own   auc  vs uniform")
     for r in table:
         print(f"{r['arm']:<16} {r['category']:<10} {r['hierarchy']:<18} {r['level']:>3} {r['faces']:6.0f} {r['z99']:7.1f} "
-              f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['auc']:5.2f} {r['giant_vs_uniform']:6.2f}")
+              f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['own']:5.3f} {r['auc']:5.2f} {r['giant_vs_uniform']:6.2f}")
     if args.out:
         args.out.write_text(csv_text(table))
 
