@@ -20,8 +20,10 @@ def test_default_is_the_dataclass_defaults():
 def test_paper_is_the_plain_reading():
     segment, train = configuration("paper")
     assert segment.groups == DEFAULT_GROUPS and "smooth" not in segment.groups
-    assert segment.combine == "coarsest" and segment.priority == "score" and segment.local_scale == "unit_area"
-    assert segment.density_range == float("inf") and segment.smooth_weight == 1.0
+    assert segment.combine == "coarsest" and segment.priority == "score" and segment.density_range == float("inf")
+    assert segment.smooth_weight == 1.0
+    # the two readings the paper's text leaves open, chosen on held-out training meshes
+    assert segment.local_scale == "relative" and segment.once_per_pass
     assert train.attention_weight == 0.0 and not train.embed_norm and train.average_last == 0
 
 
