@@ -67,13 +67,16 @@ def hierarchy(item, model: Segmenter, config) -> tuple[list, list[np.ndarray]]:
 def level_statistics(item, model: Segmenter, config) -> list[dict]:
     """The statistics of every level of one mesh's hierarchy (module docstring)."""
     levels, counts = hierarchy(item, model, config)
+    model.network.eval()
     rows = []
     for index, (level, stands_for, target) in enumerate(zip(levels, counts, level_labels(levels, item.labels, model.n_classes))):
         raw = level.feature_matrix(index, len(levels), config.local_scale)
         largest = np.abs(model.standardize(raw)).max(axis=1)
-        model.network.eval()
-        with torch.no_grad():
-            predicted = model(**model_inputs(model, level, index, len(levels), "cpu")).logits.argmax(dim=1).numpy()
+        logits = level.logits  # kept from the pass that computed the attention of a collapsed nonuniform level
+        if logits is None:
+            with torch.no_grad():
+                logits = model(**model_inputs(model, level, index, len(levels), "cpu")).logits
+        predicted = logits.argmax(dim=1).numpy()
         mean = stands_for.sum() / level.mesh.n_faces
         row = {"level": index, "faces": level.mesh.n_faces, "z99": float(np.percentile(largest, 99)),
                "zmax": float(largest.max()), "giant": int(stands_for.max()),
