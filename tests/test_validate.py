@@ -32,11 +32,11 @@ def test_overrides_are_typed_like_the_defaults():
 
 
 def test_an_arm_named_config_slash_variant_starts_from_that_configuration():
-    plain, variant = Arm.parse("paper"), Arm.parse("paper/relative:local_scale=relative")
-    assert variant.name == "paper/relative"
-    assert variant.segment == {**plain.segment, "local_scale": "relative"}
+    plain, variant = Arm.parse("paper"), Arm.parse("paper/weighted:priority=weighted")
+    assert variant.name == "paper/weighted" and plain.segment["priority"] == "score"
+    assert variant.segment == {**plain.segment, "priority": "weighted"}
     assert variant.train == plain.train and plain.train["attention_weight"] == 0.0
-    assert Arm.parse("other/relative:local_scale=relative").segment == {"local_scale": "relative"}
+    assert Arm.parse("other/weighted:priority=weighted").segment == {"priority": "weighted"}
 
 
 def test_folds_partition_the_training_meshes():
