@@ -390,6 +390,18 @@ def forward_levels(network: AttentionSegmenter, inputs: list[dict], to_level: li
     return outputs
 
 
+def level_output(model: Segmenter, levels: list[Level], index: int, device="cpu") -> Output:
+    """The network's Output on one level, reusing the logits that build_levels kept from its attention pass.
+
+    A kept Output carries no attention (the level has it already). Call it in
+    eval mode, without gradients.
+    """
+    level = levels[index]
+    if level.logits is not None:
+        return Output(level.logits, None)
+    return model(**model_inputs(model, level, index, len(levels), device))
+
+
 def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentConfig, device="cpu") -> np.ndarray:
     """Class probabilities on the original faces, carried up from the coarsest level (or all levels, or the input level)."""
     model.network.eval()
@@ -401,8 +413,7 @@ def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentCo
             maps = [torch.as_tensor(m, device=device) if m is not None else None for m in input_to_level(levels)]
             outputs = dict(enumerate(forward_levels(model.network, inputs, maps, [False] * len(levels), need_attention=True)))
         else:  # only the levels whose labels count, reusing the pass that computed their attention
-            outputs = {index: Output(levels[index].logits, None) if levels[index].logits is not None
-                       else model(**model_inputs(model, levels[index], index, len(levels), device)) for index in wanted}
+            outputs = {index: level_output(model, levels, index, device) for index in wanted}
         for index, out in outputs.items():
             if levels[index].attention is None:
                 levels[index].attention = out.attention.cpu().numpy()

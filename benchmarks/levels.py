@@ -46,7 +46,7 @@ from anseg import datasets
 from anseg.collapse import CollapseWarning, compose, rings_to_other_label
 from anseg.configs import parse_overrides
 from anseg.metrics import accuracy
-from anseg.pipeline import Segmenter, build_levels, level_labels, model_inputs
+from anseg.pipeline import Segmenter, build_levels, level_labels, level_output
 from anseg.comparison import csv_text
 
 GIANT_FACTOR = 8
@@ -72,10 +72,8 @@ def level_statistics(item, model: Segmenter, config) -> list[dict]:
     for index, (level, stands_for, target) in enumerate(zip(levels, counts, level_labels(levels, item.labels, model.n_classes))):
         raw = level.feature_matrix(index, len(levels), config.local_scale)
         largest = np.abs(model.standardize(raw)).max(axis=1)
-        logits = level.logits  # kept from the pass that computed the attention of a collapsed nonuniform level
-        if logits is None:
-            with torch.no_grad():
-                logits = model(**model_inputs(model, level, index, len(levels), "cpu")).logits
+        with torch.no_grad():
+            logits = level_output(model, levels, index).logits
         predicted = logits.argmax(dim=1).numpy()
         mean = stands_for.sum() / level.mesh.n_faces
         row = {"level": index, "faces": level.mesh.n_faces, "z99": float(np.percentile(largest, 99)),
