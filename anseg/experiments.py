@@ -235,7 +235,7 @@ EXPLORE_DEFAULTS = {"mesh_path": None, "model_path": None, "interactive": False}
 
 PER_NOTEBOOK = {
     "table1_psb.ipynb": {
-        "real": {"categories": None, "splits": [0, 1, 2, 3, 4]},
+        "real": {"categories": None, "splits": [0, 1, 2, 3, 4], "config": "default"},
         "synthetic": {"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1]},
         "smoke": {"categories": ["figure"], "splits": [0]},
     },
