@@ -71,6 +71,24 @@ def test_clusters_are_standardised_and_deterministic():
     assert labels.dtype == np.int64 and set(labels.tolist()) == {0, 1, 2}
 
 
+def test_kmeans_runs_on_one_openmp_thread_whatever_the_process_allows(monkeypatch):
+    # more threads sum the Lloyd updates in another order, which moved a real mesh's clusters
+    from sklearn.cluster import KMeans
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    seen, fit = [], KMeans.fit
+
+    def recording_fit(self, *args, **kwargs):
+        seen.extend(pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "openmp")
+        return fit(self, *args, **kwargs)
+
+    monkeypatch.setattr(KMeans, "fit", recording_fit)
+    features, _ = blobs(200)
+    with threadpool_limits(limits=2, user_api="openmp"):
+        cluster_faces(features, k=3, seed=0)
+    assert seen and set(seen) == {1}
+
+
 def test_large_inputs_fit_on_a_subset_and_assign_all():
     features, truth = blobs(400, seed=1)
     labels = cluster_faces(features, k=3, seed=5, max_fit_faces=100)
