@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from anseg import ledger
 from anseg.experiments import TABLE_IV_ROWS
 
 HEADLINE_START = "<!-- headline: written by `python -m anseg.reproduce --data real` from results/*.csv; do not edit -->"
@@ -51,9 +52,14 @@ def headline(results_dir: Path) -> str:
               "and \"none, transformer\" our network on the input mesh alone (no paper number):", "",
               "| category | " + " | ".join(rows) + " |", "|---|" + "---|" * len(rows)]
     for category, row in table4.iterrows():
-        cells = [f"{row[f'ours, {m}']:.2f}" + (f" ({row[f'paper, {m}']:.2f})" if pd.notna(row.get(f"paper, {m}")) else "")
-                 for m in rows]
+        cells = [f"{row[f'ours, {m}']:.2f}"
+                 + (f" ± {row[f'ours, {m}, std over splits']:.2f}" if pd.notna(row.get(f"ours, {m}, std over splits")) else "")
+                 + (f" ({row[f'paper, {m}']:.2f})" if pd.notna(row.get(f"paper, {m}")) else "") for m in rows]
         lines.append(f"| {category} | " + " | ".join(cells) + " |")
+    differences = [ledger.paired_over_splits(ablation_runs, "nonuniform", m) for m in rows[1:]]
+    lines += ["", "Paired, per split the mean over the categories, then its mean and standard deviation over splits "
+              "(a difference inside its spread is not a finding): "
+              + "; ".join(f"{d} ({d.reading})" for d in differences) + "."]
     coseg = results_dir / "table2_coseg.csv"
     if coseg.is_file():
         table2 = pd.read_csv(coseg, index_col=0)
@@ -75,8 +81,6 @@ def headline(results_dir: Path) -> str:
 
 def update_readme(readme: Path, results_dir: Path) -> None:
     """Replace the blocks between the headline and the ledger markers of ``readme`` with :func:`headline` and the ledger."""
-    from anseg import ledger
-
     text = readme.read_text()
     for first, last, block in ((HEADLINE_START, HEADLINE_END, headline(results_dir)),
                                (LEDGER_START, LEDGER_END, ledger.markdown(ledger.ledger(results_dir)))):

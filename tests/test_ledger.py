@@ -78,3 +78,17 @@ def test_each_row_names_the_configuration_its_notebooks_ran(results):
     assert table.loc["Attention at junctions", "configuration"] == "not recorded"
     assert table.loc["Manifold input", "configuration"] == ""  # decided by the code, not by runs
     assert "| default | **" in ledger.markdown(table.reset_index())
+
+
+@pytest.mark.parametrize("per_split, reading", [((2.0, 2.5, 1.5), ledger.HOLDS), ((2.0, -1.0, 0.5), "within the spread"),
+                                                ((-2.0, -2.5, -1.5), ledger.FAILS), ((0.1,), ledger.HOLDS)])
+def test_a_paired_difference_is_a_finding_only_outside_its_spread(per_split, reading):
+    # two categories per split; each split's own difficulty (its offset) must cancel in the pairing
+    runs = pd.DataFrame([{"category": category, "split": split, "mode": mode,
+                          "unit_area": 80.0 + 5 * split + (difference if mode == "nonuniform" else 0.0) + (category == "b")}
+                         for split, difference in enumerate(per_split) for category in ("a", "b")
+                         for mode in ("nonuniform", "uniform")])
+    paired = ledger.paired_over_splits(runs, "nonuniform", "uniform")
+    assert paired.per_split == pytest.approx(per_split)
+    assert paired.reading == reading
+    assert str(paired).startswith(f"nonuniform − uniform {sum(per_split) / len(per_split):+.2f}")

@@ -143,6 +143,7 @@ def test_headline_adds_the_mean_over_splits_when_there_are_several(tmp_path):
     pd.concat([runs.assign(split=s) for s in range(3)]).to_csv(tmp_path / "table4_ablation_runs.csv", index=False)
     lines = headline(tmp_path).splitlines()
     assert any(line.startswith("Table IV, downsampling ablation on PSB, the mean over 3 splits") for line in lines)
+    assert any(line.startswith("Paired, per split") and "over 3 split(s)" in line for line in lines)
     header = next(line for line in lines if line.startswith("| category | ours |"))
     assert header.endswith("| ours, 3 splits | std |")
     assert next(line for line in lines if line.startswith("| **mean** |")).endswith("| 50.00 | 1.50 |")
