@@ -250,7 +250,7 @@ PER_NOTEBOOK = {
         "smoke": {"dataset": "synthetic", "category": "figure"},
     },
     "table4_ablation.ipynb": {
-        "real": {"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4]},
+        "real": {"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4], "config": "default"},
         "synthetic": {"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1]},
         "smoke": {"categories": ["figure"], "splits": [0]},
     },
