@@ -8,7 +8,9 @@ stored result (``results/runs/<key>.json``) and its model
 ``anseg/pretrained/`` (:func:`publish`: float16 where that changes no test
 label). The models whose output Figs. 4-8, 10 and 12 render and that are
 not shipped already are copied as they are into ``results/models/``, so that
-the notebooks regenerate from a clone without training. Trains nothing: a
+the notebooks regenerate from a clone without training. A run whose model
+is shipped already (a card names the run) is left as it is, so the script
+can be rerun as runs land. Trains nothing: a
 run whose result or model is not here is listed and left out. The test
 meshes are read only to check the float16 copy against the trained model,
 after the run's one reading of them.
@@ -94,7 +96,7 @@ def main(argv=None) -> int:
     store, missing = ResultStore(REPO), []
     for notebook, name_of in SOURCES.items():
         for run, _, experiment, key in _runs(notebook, args.config):
-            if (name := name_of(run)) is None:
+            if (name := name_of(run)) is None or pretrained.of_run(key) is not None:  # not shipped, or shipped already
                 continue
             result = store.get(key)
             if result is None or not store.model_path(key).is_file():
@@ -106,8 +108,8 @@ def main(argv=None) -> int:
             print(f"{name}: {entry['precision']}, test accuracy {100 * entry['test_accuracy']['unit_area']:.2f} %")
     for notebook, rendered in RENDERED.items():
         for run, p, _, key in _runs(notebook, args.config):
-            if not rendered(run, p) or pretrained.of_run(key) is not None:
-                continue
+            if not rendered(run, p) or pretrained.of_run(key) is not None or (FIGURE_MODELS / f"{key}.pt").is_file():
+                continue  # not rendered, or here already
             if store.get(key) is None or not store.model_path(key).is_file():
                 missing.append(f"{notebook} {run.row} ({key})")
                 continue
