@@ -15,6 +15,7 @@ a difference inside it is not called a finding either way.
 
 from __future__ import annotations
 
+import statistics
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,13 +116,11 @@ class PairedDifference:
 
     @property
     def mean(self) -> float:
-        return sum(self.per_split) / len(self.per_split)
+        return statistics.fmean(self.per_split)
 
     @property
     def std(self) -> float:
-        import numpy as np
-
-        return float(np.std(self.per_split, ddof=1)) if len(self.per_split) > 1 else float("nan")
+        return statistics.stdev(self.per_split) if len(self.per_split) > 1 else float("nan")
 
     @property
     def reading(self) -> str:
