@@ -45,7 +45,7 @@ def headline(results_dir: Path) -> str:
     table4 = pd.read_csv(results_dir / "table4_ablation.csv", index_col=0)
     rows = [m for m in TABLE_IV_ROWS if f"ours, {m}" in table4.columns]
     ablation_runs = pd.read_csv(results_dir / "table4_ablation_runs.csv")
-    ablation_splits = sorted(ablation_runs.split.unique()) if "split" in ablation_runs else [0]
+    ablation_splits = sorted(ablation_runs.split.unique())
     on = "split 0" if ablation_splits == [0] else f"the mean over {len(ablation_splits)} splits"
     lines += ["", f"Table IV, downsampling ablation on PSB, {on} ([notebook](notebooks/executed/table4_ablation.ipynb)), "
               "ours (paper); \"none\" is the paper's row, a per-face classifier without attention or downsampling, "

@@ -134,7 +134,6 @@ class PairedDifference:
 
 def paired_over_splits(runs, better: str, worse: str) -> PairedDifference:
     """The paired difference of two Table IV rows from its runs (``table4_ablation_runs.csv``: category, split, mode, unit_area)."""
-    runs = runs if "split" in runs else runs.assign(split=0)  # written before Table IV ran on several splits
     per_split = runs.pivot_table(index=["category", "split"], columns="mode", values="unit_area")
     by_split = (per_split[better] - per_split[worse]).groupby("split").mean()
     return PairedDifference(better, worse, tuple(float(d) for d in by_split))

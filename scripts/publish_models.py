@@ -96,7 +96,7 @@ def main(argv=None) -> int:
     store, missing = ResultStore(REPO), []
     for notebook, name_of in SOURCES.items():
         for run, _, experiment, key in _runs(notebook, args.config):
-            if (name := name_of(run)) is None or pretrained.of_run(key) is not None:  # not shipped, or shipped already
+            if (name := name_of(run)) is None or pretrained.of_run(key) is not None:  # not a shipped name, or shipped already
                 continue
             result = store.get(key)
             if result is None or not store.model_path(key).is_file():
