@@ -32,7 +32,7 @@ import torch
 
 from anseg.cache import atomic_write
 from anseg.pipeline import DOWNSAMPLING_MODES, SegmentConfig
-from anseg.train import TrainConfig, evaluate, fit
+from anseg.train import TrainConfig, evaluate, fit_and_time
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -179,9 +179,8 @@ def train_and_evaluate(experiment: Experiment, dataset_options: dict | None = No
     train_set = datasets.load(experiment.dataset, split="train", **load)
     test_set = datasets.load(experiment.dataset, split="test", **load)
     label_names = train_set[0].label_names
-    started, cpu_started = time.time(), time.process_time()
-    model = fit(train_set, label_names, experiment.segment, experiment.train, checkpoint, progress)
-    train_seconds, train_cpu_seconds = time.time() - started, time.process_time() - cpu_started
+    model, train_seconds, train_cpu_seconds = fit_and_time(train_set, label_names, experiment.segment, experiment.train,
+                                                           checkpoint, progress)
     started = time.time()
     scores = evaluate(model, test_set, progress=progress)
     result = {

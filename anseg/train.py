@@ -38,6 +38,7 @@ import json
 import math
 import os
 import random
+import time
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -226,7 +227,25 @@ def fit(
     epoch, and a run that finds a checkpoint of the same settings resumes
     from it.
     """
+    return fit_and_time(train_set, label_names, config, train, checkpoint, progress)[0]
+
+
+def fit_and_time(
+    train_set,
+    label_names: list[str],
+    config: SegmentConfig | None = None,
+    train: TrainConfig | None = None,
+    checkpoint: str | os.PathLike | None = None,
+    progress: bool = True,
+) -> tuple[Segmenter, float, float]:
+    """:func:`fit`, and the wall and CPU seconds the training took.
+
+    A resumed run counts the seconds its checkpoint carries from the
+    sessions before, so that a run record states the whole cost of the run.
+    """
     from tqdm.auto import tqdm
+
+    started = time.time(), time.process_time()
 
     config = config or SegmentConfig()
     train = train or TrainConfig()
@@ -255,7 +274,7 @@ def fit(
     total_steps = train.epochs * len(train_set)
     settings = {"segment": asdict(config), "train": asdict(train), "meshes": [m.name for m in train_set]}
     order = np.random.default_rng(train.seed)  # the order of the meshes in each epoch
-    state = _TrainingState(network, optimizer, order)
+    state = _TrainingState(network, optimizer, order, started)
     start = state.resume(checkpoint, settings) if checkpoint else 0
 
     bar = tqdm(range(start, train.epochs), desc="train", disable=not progress, initial=start, total=train.epochs)
@@ -286,7 +305,7 @@ def fit(
     if train.average_last:
         network.load_state_dict(state.averaged())
     network.eval()
-    return model
+    return (model, *state.seconds_spent())
 
 
 class _TrainingState:
@@ -295,13 +314,20 @@ class _TrainingState:
     Besides the weights, the optimiser and torch's random state: the
     generator that orders the meshes, and the weights the current hierarchy
     was built with (it is rebuilt only every ``recollapse_every`` epochs),
-    and the running sum of the weights being averaged (``average_last``).
+    and the running sum of the weights being averaged (``average_last``);
+    and the wall and CPU seconds spent on the run so far.
     """
 
-    def __init__(self, network, optimizer, order: np.random.Generator):
+    def __init__(self, network, optimizer, order: np.random.Generator, started: tuple[float, float]):
         self.network, self.optimizer, self.order = network, optimizer, order
         self.rebuilt_with = None  # state dict of the last rebuild; None: the current weights
         self.weight_sum, self.summed = None, 0  # the averaged epochs' weights (float64), and how many
+        self.started, self.spent_before = started, (0.0, 0.0)  # this session's start; earlier sessions' seconds
+
+    def seconds_spent(self) -> tuple[float, float]:
+        """Wall and CPU seconds of the run, earlier sessions included."""
+        now = time.time(), time.process_time()
+        return tuple(before + n - s for before, n, s in zip(self.spent_before, now, self.started))
 
     def add_to_average(self) -> None:
         current = {k: v.detach().double() for k, v in self.network.state_dict().items()}
@@ -329,7 +355,7 @@ class _TrainingState:
         payload = {"settings": json.dumps(settings, sort_keys=True), "network": self.network.state_dict(),
                    "optimizer": self.optimizer.state_dict(), "epoch": epoch, "torch_rng": torch.get_rng_state(),
                    "order_rng": json.dumps(self.order.bit_generator.state), "rebuilt_with": self.rebuilt_with,
-                   "weight_sum": self.weight_sum, "summed": self.summed}
+                   "weight_sum": self.weight_sum, "summed": self.summed, "seconds_spent": list(self.seconds_spent())}
         atomic_write(path, lambda tmp: torch.save(payload, tmp))
 
     def resume(self, path, settings: dict) -> int:
@@ -346,6 +372,7 @@ class _TrainingState:
         self.order.bit_generator.state = json.loads(payload["order_rng"])
         self.rebuilt_with = payload["rebuilt_with"]
         self.weight_sum, self.summed = payload.get("weight_sum"), payload.get("summed", 0)
+        self.spent_before = tuple(payload.get("seconds_spent", (0.0, 0.0)))
         return int(payload["epoch"])
 
 

@@ -49,7 +49,7 @@ from anseg.comparison import write_ensemble_report, write_report
 from anseg.configs import NAMED, overrides
 from anseg.experiments import Experiment, ResultStore, environment
 from anseg.pipeline import SegmentConfig, Segmenter
-from anseg.train import TrainConfig, evaluate, fit
+from anseg.train import TrainConfig, evaluate, fit_and_time
 
 DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane", "Bird", "Teddy")
 # SegmentConfig fields that change only how a trained model segments, not the training, each with the value
@@ -150,11 +150,12 @@ def compute_cell(cell: Cell, root=None, model: bytes | None = None, checkpoint: 
     train_set = [m for m, f in zip(meshes, fold) if f != cell.fold]
     held_out = [m for m, f in zip(meshes, fold) if f == cell.fold]
     segment, train = cell.configs()
-    started, cpu_started = time.time(), time.process_time()
     trained = model is None
-    network = (fit(train_set, meshes[0].label_names, segment, train, checkpoint, progress=False) if trained
-               else Segmenter.load(io.BytesIO(model)))
-    train_seconds, train_cpu_seconds = time.time() - started, time.process_time() - cpu_started
+    if trained:
+        network, train_seconds, train_cpu_seconds = fit_and_time(train_set, meshes[0].label_names, segment, train,
+                                                                 checkpoint, progress=False)
+    else:
+        network, train_seconds, train_cpu_seconds = Segmenter.load(io.BytesIO(model)), 0.0, 0.0
     scores = evaluate(network, held_out, segment, progress=False)
     result = {
         "key": cell.key(), "training_key": cell.training_key(), "arm": cell.arm.name, "category": cell.category,

@@ -1,4 +1,4 @@
-"""What must survive a crash: a training run killed mid-epoch resumes to the same model; concurrent cache writers."""
+"""What must survive a crash: a training run killed mid-epoch resumes to the same model and keeps its seconds; concurrent cache writers."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import torch
 
 from anseg import cache, datasets
 from anseg.pipeline import SegmentConfig
-from anseg.train import TrainConfig, fit
+from anseg.train import TrainConfig, fit, fit_and_time
 
 # every epoch averaged (average_last): the checkpoint carries a partial sum of weights
 SEGMENT, TRAIN = {"cycles": 2, "clusters": 4}, {"epochs": 6, "width": 16, "recollapse_every": 4, "average_last": 6}
@@ -55,10 +55,12 @@ def test_a_run_killed_mid_epoch_resumes_to_the_same_model(tmp_path):
     assert 1 <= killed_at < 6, "the run was not killed in the middle"
     meshes = datasets.load("synthetic", "figure", "train", n_shapes=8, progress=False)
     segment, train = SegmentConfig(**SEGMENT), TrainConfig(**TRAIN)
-    resumed = fit(meshes, meshes[0].label_names, segment, train, checkpoint=checkpoint, progress=False)
+    killed_after = torch.load(checkpoint, weights_only=True)["seconds_spent"][0]
+    resumed, seconds, _ = fit_and_time(meshes, meshes[0].label_names, segment, train, checkpoint=checkpoint, progress=False)
     straight = fit(meshes, meshes[0].label_names, segment, train, progress=False)
     for a, b in zip(straight.network.state_dict().values(), resumed.network.state_dict().values()):
         assert torch.equal(a, b)
+    assert seconds > killed_after > 0  # the record states the killed session's seconds too
 
 
 @pytest.mark.slow

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -14,7 +15,7 @@ from anseg.configs import configuration
 from anseg.metrics import pooled_accuracy
 from anseg.pipeline import SegmentConfig
 from anseg.experiments import Experiment
-from anseg.train import TrainConfig, evaluate, feature_statistics, fit
+from anseg.train import TrainConfig, evaluate, feature_statistics, fit, fit_and_time
 
 SMALL = SegmentConfig(cycles=2, clusters=4, patch_size=16)
 
@@ -68,6 +69,22 @@ def test_resumes_from_a_checkpoint(split, tmp_path):
     other = TrainConfig(epochs=1, width=16, seed=5)
     assert fit(train_set[:2], names, SMALL, other, checkpoint=checkpoint, progress=False) is not None
     assert torch.load(checkpoint, weights_only=True)["epoch"] == 1
+
+
+def test_a_resumed_run_counts_the_seconds_of_the_sessions_before(split, tmp_path):
+    train_set, _ = split
+    names, checkpoint, settings = train_set[0].label_names, tmp_path / "run.ckpt", TrainConfig(epochs=1, width=16)
+    _, seconds, cpu_seconds = fit_and_time(train_set[:2], names, SMALL, settings, checkpoint=checkpoint, progress=False)
+    carried = torch.load(checkpoint, weights_only=True)["seconds_spent"]
+    assert 0 < carried[0] <= seconds and 0 < carried[1] <= cpu_seconds
+    # as if the finished epoch had taken an hour of an earlier session: the resumed run adds it
+    payload = torch.load(checkpoint, weights_only=True)
+    payload["seconds_spent"] = [3600.0, 1800.0]
+    torch.save(payload, checkpoint)
+    started = time.time()
+    _, resumed, resumed_cpu = fit_and_time(train_set[:2], names, SMALL, settings, checkpoint=checkpoint, progress=False)
+    assert 3600.0 < resumed <= 3600.0 + time.time() - started
+    assert 1800.0 < resumed_cpu
 
 
 def test_average_last_keeps_the_mean_of_the_last_epochs_weights(split):

@@ -136,8 +136,8 @@ def test_a_study_stores_its_cells_and_resumes_without_training(tmp_path, monkeyp
     cells = validate.study_cells(arms, ["figure"], folds=2, use_folds=[0], seeds=[0], epochs=2, **SYNTHETIC)
     assert [c.arm.name for c in cells] == ["default", "no-cut"]
     fits = []
-    real_fit = validate.fit
-    monkeypatch.setattr(validate, "fit", lambda *a, **k: fits.append(1) or real_fit(*a, **k))
+    real_fit = validate.fit_and_time
+    monkeypatch.setattr(validate, "fit_and_time", lambda *a, **k: fits.append(1) or real_fit(*a, **k))
     results = validate.run_study(cells, tmp_path, progress=False)
     assert len(results) == 2 and len(fits) == 1  # the inference-only arm reused the trained model
     assert [r["trained"] for r in results] == [True, False]
@@ -188,7 +188,7 @@ def test_validation_never_reads_a_test_mesh(data_root, tmp_path, monkeypatch):
     read = []
     real_read = psb.read_mesh
     monkeypatch.setattr(psb, "read_mesh", lambda path: read.append(path) or real_read(path))
-    monkeypatch.setattr(validate, "fit", lambda *args, **kwargs: _Stub())
+    monkeypatch.setattr(validate, "fit_and_time", lambda *args, **kwargs: (_Stub(), 0.0, 0.0))
     monkeypatch.setattr(validate, "evaluate", lambda model, meshes, config, progress: _scores(meshes))
     cell = Cell(Arm("default"), "Vase", fold=1, seed=0)
     (result,) = validate.run_study([cell], tmp_path, root=data_root, progress=False)
