@@ -21,9 +21,13 @@ def stored(key: str) -> dict:
 def test_every_row_of_a_run_table_is_its_stored_run(table):
     rows = pd.read_csv(RESULTS / table)
     for row in rows.itertuples():
-        accuracy = stored(row.key)["accuracy"]
+        run = stored(row.key)
         for reading in ("unit_area", "raw_area", "faces"):
-            assert getattr(row, reading) == pytest.approx(100 * accuracy[reading], abs=1e-9), (table, row.key, reading)
+            assert getattr(row, reading) == pytest.approx(100 * run["accuracy"][reading], abs=1e-9), (table, row.key, reading)
+        if "train_seconds" in rows:
+            assert row.train_seconds == pytest.approx(run["train_seconds"], abs=0.05), (table, row.key)
+        if "evaluate_seconds_per_mesh" in rows:
+            assert row.evaluate_seconds_per_mesh == pytest.approx(run["evaluate_seconds"] / run["n_test"], abs=0.005)
 
 
 def test_table_one_is_the_mean_and_spread_of_its_runs():
