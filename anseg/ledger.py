@@ -40,6 +40,7 @@ class Claim:
     paper: str  # what the paper claims, in our words
     decide: Callable[[Path], Verdict]  # from the folder that holds results/*.csv
     sources: tuple[str, ...] = ()  # the notebooks whose results decide it (their records name the configuration)
+    also_reads: tuple[str, ...] = ()  # configurations it reads beside its notebooks' own (the paper's, in a column)
 
 
 class MissingResult(Exception):
@@ -303,14 +304,14 @@ def _manifold(results: Path) -> Verdict:
 
 
 CLAIMS = [
-    Claim("PSB accuracy", "95.29 mean over 16 PSB categories (Table I)", _psb_mean, ("table1_psb",)),
+    Claim("PSB accuracy", "95.29 mean over 16 PSB categories (Table I)", _psb_mean, ("table1_psb",), (PLAIN_READING,)),
     Claim("PSB, best in most categories", "above ShapePFCN, MeshCNN and MeshWalker in most categories", _psb_best_in_most,
           ("table1_psb",)),
     Claim("COSEG accuracy", "93.55 mean over the 8 small COSEG sets (Table II)", _coseg_small, ("table2_coseg",)),
     Claim("Human body accuracy", "93.12 on the human body set (Table III)", _human, ("table3_human",)),
     Claim("Downsampling order", "nonuniform > uniform > none (Table IV)", _ablation_order, ("table4_ablation",)),
     Claim("Attention at junctions", "attention concentrates at details and part junctions (Fig. 4)", _attention_at_junctions,
-          ("fig4_attention",)),
+          ("fig4_attention",), (PLAIN_READING,)),
     Claim("More cycles help", "accuracy rises with N, then levels off or falls (Fig. 11)", _cycles, ("fig11_cycles_ratio",)),
     Claim("N = 4, ratio 0.5", "4 cycles removing half the faces each is the best choice (Fig. 11)", _best_setting,
           ("fig11_cycles_ratio",)),
@@ -319,13 +320,13 @@ CLAIMS = [
     Claim("Better than MeshCNN and Guo et al.", "visibly better than MeshCNN and Guo et al. (Fig. 9)", _better_than_meshcnn,
           ("table1_psb",)),
     Claim("Labels survive", "labels survive the collapses and the vote back to the input faces (Sec. III-C)", _labels_survive,
-          ("fig4_attention",)),
+          ("fig4_attention",), (PLAIN_READING,)),
     Claim("Manifold input", "the method needs manifold meshes (a stated limitation)", _manifold),
     Claim("Cost", "10 minutes of training and 30 s of evaluation per model of 20K-30K faces", _cost, ("table1_psb",)),
 ]
 
 
-def _configurations(results: Path, sources: tuple[str, ...]) -> str:
+def _configurations(results: Path, sources: tuple[str, ...], also_reads: tuple[str, ...] = ()) -> str:
     """The named configurations of the runs behind a claim, from its notebooks' records ("" when none is read)."""
     import json
 
@@ -335,7 +336,7 @@ def _configurations(results: Path, sources: tuple[str, ...]) -> str:
         name = (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None
         if name is not None and name not in names:
             names.append(name)
-    return ", ".join(names)
+    return ", ".join(names + [name for name in also_reads if names and name not in names])
 
 
 def ledger(results: str | Path, benchmark: bool = True):
@@ -355,7 +356,7 @@ def ledger(results: str | Path, benchmark: bool = True):
         except MissingResult as missing:
             verdict = Verdict(f"no result: {missing}", UNTESTED)
         rows.append({"claim": claim.name, "the paper": claim.paper, "our evidence": verdict.evidence,
-                     "configuration": _configurations(Path(results), claim.sources) if benchmark else "",
+                     "configuration": _configurations(Path(results), claim.sources, claim.also_reads) if benchmark else "",
                      "verdict": verdict.verdict})
     return pd.DataFrame(rows)
 

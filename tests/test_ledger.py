@@ -72,10 +72,12 @@ def test_each_row_names_the_configuration_its_notebooks_ran(results):
 
     record = json.loads((results / "table4_ablation.json").read_text())
     (results / "table4_ablation.json").write_text(json.dumps({**record, "configuration": "default"}))
-    (results / "fig4_attention.json").write_text(json.dumps({"notebook": "fig4_attention"}))  # a record from before
+    (results / "fig4_attention.json").write_text(json.dumps({"notebook": "fig4_attention", "configuration": "default"}))
+    (results / "fig11_cycles_ratio.json").write_text(json.dumps({"notebook": "fig11_cycles_ratio"}))  # a record from before
     table = ledger.ledger(results).set_index("claim")
     assert table.loc["Downsampling order", "configuration"] == "default"
-    assert table.loc["Attention at junctions", "configuration"] == "not recorded"
+    assert table.loc["Attention at junctions", "configuration"] == "default, paper"  # it reads the paper's model too
+    assert table.loc["More cycles help", "configuration"] == "not recorded"
     assert table.loc["Manifold input", "configuration"] == ""  # decided by the code, not by runs
     assert "| default | **" in ledger.markdown(table.reset_index())
 
