@@ -213,21 +213,9 @@ def _loss(model: Segmenter, example: _Example, train: TrainConfig) -> tuple[torc
     return total / sum(level_weights), coarse_accuracy
 
 
-def fit(
-    train_set,
-    label_names: list[str],
-    config: SegmentConfig | None = None,
-    train: TrainConfig | None = None,
-    checkpoint: str | os.PathLike | None = None,
-    progress: bool = True,
-) -> Segmenter:
-    """Train a Segmenter on labelled meshes (``.mesh``, ``.labels``).
-
-    With ``checkpoint`` the state is written there atomically after every
-    epoch, and a run that finds a checkpoint of the same settings resumes
-    from it.
-    """
-    return fit_and_time(train_set, label_names, config, train, checkpoint, progress)[0]
+def fit(*args, **kwargs) -> Segmenter:
+    """Train a Segmenter on labelled meshes: :func:`fit_and_time`'s arguments, the model alone."""
+    return fit_and_time(*args, **kwargs)[0]
 
 
 def fit_and_time(
@@ -238,10 +226,12 @@ def fit_and_time(
     checkpoint: str | os.PathLike | None = None,
     progress: bool = True,
 ) -> tuple[Segmenter, float, float]:
-    """:func:`fit`, and the wall and CPU seconds the training took.
+    """Train a Segmenter on labelled meshes (``.mesh``, ``.labels``): the model, and the wall and CPU seconds it took.
 
-    A resumed run counts the seconds its checkpoint carries from the
-    sessions before, so that a run record states the whole cost of the run.
+    With ``checkpoint`` the state is written there atomically after every
+    epoch, and a run that finds a checkpoint of the same settings resumes
+    from it; the resumed run counts the seconds the checkpoint carries from
+    the sessions before, so that a run record states the whole cost.
     """
     from tqdm.auto import tqdm
 
