@@ -7,9 +7,11 @@ STAMP := $(VENV)/.installed
 # make reproduce DATA=real      (the benchmark archives under $$ANSEG_DATA; writes figures/ and results/)
 # make reproduce CONFIG=paper   (every run from a named configuration of anseg.configs instead of the plan's)
 # make reproduce ONLY="table2 fig4"  (only the notebooks whose names contain one of these)
+# make reproduce SPLITS="0"     (the notebooks that take several splits run on these alone)
 DATA ?= synthetic
 CONFIG ?=
 ONLY ?=
+SPLITS ?=
 
 .PHONY: reproduce test clean
 
@@ -21,7 +23,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 reproduce: $(STAMP)
-	$(BIN)/python -m anseg.reproduce --data $(DATA) $(if $(CONFIG),--config $(CONFIG)) $(if $(ONLY),--only $(ONLY))
+	$(BIN)/python -m anseg.reproduce --data $(DATA) $(if $(CONFIG),--config $(CONFIG)) $(if $(ONLY),--only $(ONLY)) $(if $(SPLITS),--splits $(SPLITS))
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

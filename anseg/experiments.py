@@ -329,6 +329,11 @@ def notebook_parameters(name: str, kind: str) -> dict:
     return resolve_categories({**COMMON[kind], **PER_NOTEBOOK[name][kind]})
 
 
+def with_choices(p: dict, config: str | None = None, splits: list[int] | None = None) -> dict:
+    """A notebook's parameters with a named configuration and, where it takes ``splits``, the splits chosen instead of the plan's."""
+    return {**p, **({"config": config} if config else {}), **({"splits": list(splits)} if splits and "splits" in p else {})}
+
+
 def resolve_categories(p: dict) -> dict:
     """``categories=None`` means every category of the data set."""
     from anseg import datasets
@@ -408,15 +413,17 @@ def planned_experiment(run: PlannedRun, p: dict) -> tuple[Experiment, dict]:
     return experiment, (shape_options if run.dataset == "synthetic" else {})
 
 
-def planned_experiments(kind: str, only: list[str] | None = None, config: str | None = None) -> list[tuple[Experiment, dict]]:
+def planned_experiments(kind: str, only: list[str] | None = None, config: str | None = None,
+                        splits: list[int] | None = None) -> list[tuple[Experiment, dict]]:
     """Every (Experiment, data set options) the notebooks of ``kind`` train, without repeats.
 
     In notebook order, and inside a notebook the costliest runs first; with
-    ``config``, from that named configuration instead of the run kind's.
+    ``config``, from that named configuration instead of the run kind's; with
+    ``splits``, on those splits in the notebooks that take several.
     """
     plan = {}
     for name in selected_notebooks(only):
-        p = {**notebook_parameters(name, kind), **({"config": config} if config else {})}
+        p = with_choices(notebook_parameters(name, kind), config, splits)
         # costliest first: attention-driven runs collapse every few epochs, "none" never does
         runs = sorted(notebook_runs(name, p), key=lambda run: DOWNSAMPLING_MODES.index(run.segment.get("mode", "nonuniform")))
         for run in runs:

@@ -37,6 +37,7 @@ from anseg.experiments import (
     planned_experiments,
     run_plan,
     selected_notebooks,
+    with_choices,
 )
 from anseg.headline import update_readme
 
@@ -44,8 +45,12 @@ NOTEBOOKS = REPO / "notebooks"
 
 
 def run(kind: str, only: list[str] | None = None, out: Path | None = None, kernel: str | None = None,
-        config: str | None = None) -> int:
-    """Execute the notebooks of one run kind (with ``config``, from that named configuration); returns the number that failed."""
+        config: str | None = None, splits: list[int] | None = None) -> int:
+    """Execute the notebooks of one run kind; returns the number that failed.
+
+    With ``config``, every run starts from that named configuration; with
+    ``splits``, the notebooks that take several splits run on those alone.
+    """
     import papermill
 
     executed_dir, results_root = output_dirs(kind, out)
@@ -60,7 +65,7 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
     failed = 0
     for name in names:
         # relative to the notebooks' folder (their working directory): executed notebooks name no machine's paths
-        params = {**COMMON[kind], **PER_NOTEBOOK[name][kind], **({"config": config} if config else {}),
+        params = {**with_choices({**COMMON[kind], **PER_NOTEBOOK[name][kind]}, config, splits),
                   "output_dir": os.path.relpath(results_root, NOTEBOOKS)}
         started = time.time()
         print(f"[anseg] {name} ({kind}) ...", flush=True)
@@ -87,7 +92,8 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
     return failed
 
 
-def status(kind: str, only: list[str] | None = None, out: Path | None = None, config: str | None = None) -> list[dict]:
+def status(kind: str, only: list[str] | None = None, out: Path | None = None, config: str | None = None,
+           splits: list[int] | None = None) -> list[dict]:
     """Per notebook: its configuration, its planned runs, how many the store holds, and the training time left.
 
     The time left is the stored runs' median training time (one process)
@@ -98,7 +104,7 @@ def status(kind: str, only: list[str] | None = None, out: Path | None = None, co
     store = ResultStore(output_dirs(kind, out)[1])
     rows = []
     for name in selected_notebooks(only):
-        plan = planned_experiments(kind, [name], config)
+        plan = planned_experiments(kind, [name], config, splits)
         stored = [r for r in (store.get(e.key(x)) for e, x in plan) if r is not None]
         seconds = [r["train_seconds"] for r in stored if "train_seconds" in r]
         rows.append({"notebook": name, "config": config or notebook_parameters(name, kind)["config"],
@@ -121,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kernel", default=None, help="Jupyter kernel name (default: the notebook's own)")
     parser.add_argument("--config", choices=list(NAMED),
                         help="the named configuration every run starts from (default: the plan's for the run kind)")
+    parser.add_argument("--splits", type=int, nargs="+", metavar="K",
+                        help="the notebooks that take several splits run on these alone (default: the plan's; "
+                             "their records name the splits)")
     parser.add_argument("--train-only", action="store_true",
                         help="train the notebooks' configurations into the result store; run no notebook")
     parser.add_argument("--workers", type=int, default=1,
@@ -142,18 +151,18 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--scheduler needs the dask backend")
     kind = "smoke" if args.smoke else args.data
     if args.status:
-        for row in status(kind, args.only, args.out, args.config):
+        for row in status(kind, args.only, args.out, args.config, args.splits):
             left = ("trains nothing" if not row["planned"] else "no run stored yet" if row["hours_left"] is None
                     else f"about {row['hours_left']:.1f} h of one-process training left")
             print(f"{row['notebook']:<26} {row['config']:<8} {row['stored']:>4} of {row['planned']:>4} runs stored; {left}")
         return 0
     if args.train_only:
         store = ResultStore(output_dirs(kind, args.out)[1])
-        failed = run_plan(planned_experiments(kind, args.only, args.config), store, args.workers, args.scheduler, args.backend,
+        failed = run_plan(planned_experiments(kind, args.only, args.config, args.splits), store, args.workers, args.scheduler, args.backend,
                           stop_after=args.stop_after and 60 * args.stop_after)
         what = "run(s)"
     else:
-        failed = run(kind, args.only, args.out, args.kernel, args.config)
+        failed = run(kind, args.only, args.out, args.kernel, args.config, args.splits)
         what = "notebook(s)"
     if failed:
         print(f"[anseg] {failed} {what} failed", file=sys.stderr)

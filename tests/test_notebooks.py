@@ -190,6 +190,15 @@ def test_real_notebooks_run_on_one_thread_unless_told_otherwise(tmp_path, monkey
     assert seen == ["1", "2"]
 
 
+def test_chosen_splits_replace_the_plans_where_a_notebook_takes_several():
+    everything = planned_experiments("real", ["fig11"], config="default")
+    first = planned_experiments("real", ["fig11"], config="default", splits=[0])
+    assert {e.split_index for e, _ in everything} == {0, 1, 2} and {e.split_index for e, _ in first} == {0}
+    assert [e.key(x) for e, x in first] == [e.key(x) for e, x in everything if e.split_index == 0]
+    # a notebook on one split (Fig. 4, Table III) is as planned
+    assert planned_experiments("real", ["fig4", "table3"], splits=[3]) == planned_experiments("real", ["fig4", "table3"])
+
+
 def test_status_counts_the_stored_runs_and_the_training_left(tmp_path, capsys):
     from anseg.experiments import ResultStore, output_dirs
     from anseg.reproduce import main, status
