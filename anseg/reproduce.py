@@ -150,6 +150,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.scheduler and args.backend != "dask":
         parser.error("--scheduler needs the dask backend")
     kind = "smoke" if args.smoke else args.data
+    if args.splits:
+        from anseg.datasets import PSB_SPLIT_COUNT
+        from anseg.datasets.synthetic import N_SPLITS
+
+        count = PSB_SPLIT_COUNT if kind == "real" else N_SPLITS
+        if not all(0 <= s < count for s in args.splits):
+            parser.error(f"--splits: the {args.data} data has splits 0 to {count - 1}")
     if args.status:
         for row in status(kind, args.only, args.out, args.config, args.splits):
             left = ("trains nothing" if not row["planned"] else "no run stored yet" if row["hours_left"] is None

@@ -199,6 +199,14 @@ def test_chosen_splits_replace_the_plans_where_a_notebook_takes_several():
     assert planned_experiments("real", ["fig4", "table3"], splits=[3]) == planned_experiments("real", ["fig4", "table3"])
 
 
+def test_a_split_the_data_lacks_is_refused_in_one_line(capsys):
+    from anseg.reproduce import main
+
+    with pytest.raises(SystemExit):
+        main(["--data", "real", "--status", "--splits", "0", "5"])
+    assert "--splits: the real data has splits 0 to 4" in capsys.readouterr().err
+
+
 def test_status_counts_the_stored_runs_and_the_training_left(tmp_path, capsys):
     from anseg.experiments import ResultStore, output_dirs
     from anseg.reproduce import main, status
