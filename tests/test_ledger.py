@@ -94,3 +94,27 @@ def test_a_paired_difference_is_a_finding_only_outside_its_spread(per_split, rea
     assert paired.per_split == pytest.approx(per_split)
     assert paired.reading == reading
     assert str(paired).startswith(f"nonuniform − uniform {sum(per_split) / len(per_split):+.2f}")
+
+
+def fig11_runs(effect) -> pd.DataFrame:
+    """A Fig. 11 run table over 3 splits whose own difficulty differs by 10 points: ``effect(removed, cycles, split)``."""
+    return pd.DataFrame([{"category": "Airplane", "split": split, "removed": removed, "cycles": cycles,
+                          "unit_area": 80.0 + 10 * split + effect(removed, cycles, split)}
+                         for split in range(3) for removed in (0.3, 0.5) for cycles in (1, 2, 4, 6)])
+
+
+def test_fig11_is_read_from_differences_paired_over_the_splits(results):
+    verdict = lambda name: ledger.ledger(results).set_index("claim").loc[name, "verdict"]
+    # removing 0.5 climbs by 2 points at N = 4 on every split (the splits' 10-point spread cancels); 0.3 stays flat
+    runs = fig11_runs(lambda removed, cycles, split: 2.0 * (removed == 0.5 and cycles == 4) + 0.01 * split * cycles)
+    (reading,) = ledger.fig11_readings(runs)
+    assert reading.best == (0.5, 4) and reading.choice_gap.reading == "within the spread"  # the choice is the best
+    assert reading.climbs[0.5].reading == ledger.HOLDS and reading.climbs[0.5].mean == pytest.approx(2.03)
+    assert reading.climbs[0.3].better == "N = 6" and reading.climbs[0.3].reading == "within the spread"
+    runs.to_csv(results / "fig11_cycles_ratio.csv", index=False)
+    assert verdict("N = 4, ratio 0.5") == ledger.HOLDS
+    assert verdict("More cycles help") == ledger.FAILS  # 1 of 2 curves is not most
+    # N = 2 removing 0.3 beats the paper's choice by 1 point on every split: a finding against it
+    runs = fig11_runs(lambda removed, cycles, split: 2.0 * (removed == 0.5 and cycles == 4) + 3.0 * (removed == 0.3 and cycles == 2))
+    runs.to_csv(results / "fig11_cycles_ratio.csv", index=False)
+    assert verdict("N = 4, ratio 0.5") == ledger.FAILS and verdict("More cycles help") == ledger.HOLDS
