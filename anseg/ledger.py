@@ -250,11 +250,14 @@ def fig11_readings(runs) -> list[CyclesReading]:
         for removed, curve in accuracy.groupby(level="removed"):
             curve = curve.droplevel("removed").sort_index()
             peak, first = curve.mean(axis=1).idxmax(), curve.index[0]
-            climbs[removed] = PairedDifference(f"N = {peak}", f"N = {first}", tuple(map(float, curve.loc[peak] - curve.loc[first])))
+            climbs[removed] = PairedDifference(f"N = {peak}", f"N = {first}",
+                                               tuple(map(float, curve.loc[peak] - curve.loc[first])))
         best = means.idxmax()
         key = (choice["removed"], choice["cycles"])
-        gap = (PairedDifference(f"N = {best[1]}, removing {best[0]:g}", "the paper's choice",
-                                tuple(map(float, accuracy.loc[best] - accuracy.loc[key]))) if key in accuracy.index else None)
+        gap = None
+        if key in accuracy.index:
+            gap = PairedDifference(f"N = {best[1]}, removing {best[0]:g}", "the paper's choice",
+                                   tuple(map(float, accuracy.loc[best] - accuracy.loc[key])))
         readings.append(CyclesReading(category, means.to_dict(), climbs, best, gap))
     return readings
 
@@ -352,9 +355,9 @@ def _labels_survive(results: Path) -> Verdict:
     meshes = _fig4_test_meshes(results)
     kept = fig4_summary(meshes)[1]
     named = {PLAIN_READING: "the paper's configuration (unsupervised attention)", "ours": "ours (supervised attention)"}
-    evidence = "; ".join(f"{named.get(who, who)}: nonuniform {kept.loc[who, 'nonuniform']:.2f} %, "
-                         f"uniform {kept.loc[who, 'uniform']:.2f} %" for who in kept.index) + (f" of the area of {meshes.mesh.nunique()} test meshes keeps its label "
-                                                   "through the coarsest level and back")
+    evidence = ("; ".join(f"{named.get(who, who)}: nonuniform {kept.loc[who, 'nonuniform']:.2f} %, "
+                          f"uniform {kept.loc[who, 'uniform']:.2f} %" for who in kept.index)
+                + f" of the area of {meshes.mesh.nunique()} test meshes keeps its label through the coarsest level and back")
     paper = kept.loc[PLAIN_READING]
     return Verdict(evidence, HOLDS if paper["nonuniform"] >= paper["uniform"] else FAILS)
 
@@ -382,8 +385,8 @@ CLAIMS = [
           ("fig12_features",)),
     Claim("Better than MeshCNN and Guo et al.", "visibly better than MeshCNN and Guo et al. (Fig. 9)", _better_than_meshcnn,
           ("table1_psb",)),
-    Claim("Labels survive", "labels survive the collapses and the vote back to the input faces, better than with other downsampling (Sec. III-C)", _labels_survive,
-          ("fig4_attention",), (PLAIN_READING,)),
+    Claim("Labels survive", "labels survive the collapses and the vote back to the input faces, better than with other "
+          "downsampling (Sec. III-C)", _labels_survive, ("fig4_attention",), (PLAIN_READING,)),
     Claim("Manifold input", "the method needs manifold meshes (a stated limitation)", _manifold),
     Claim("Cost", "10 minutes of training and 30 s of evaluation per model of 20K-30K faces", _cost, ("table1_psb",)),
 ]

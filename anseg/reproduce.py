@@ -165,8 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.train_only:
         store = ResultStore(output_dirs(kind, args.out)[1])
-        failed = run_plan(planned_experiments(kind, args.only, args.config, args.splits), store, args.workers, args.scheduler, args.backend,
-                          stop_after=args.stop_after and 60 * args.stop_after)
+        failed = run_plan(planned_experiments(kind, args.only, args.config, args.splits), store, args.workers, args.scheduler,
+                          args.backend, stop_after=args.stop_after and 60 * args.stop_after)
         what = "run(s)"
     else:
         failed = run(kind, args.only, args.out, args.kernel, args.config, args.splits)

@@ -115,6 +115,7 @@ def test_fig11_is_read_from_differences_paired_over_the_splits(results):
     assert verdict("N = 4, ratio 0.5") == ledger.HOLDS
     assert verdict("More cycles help") == ledger.FAILS  # 1 of 2 curves is not most
     # N = 2 removing 0.3 beats the paper's choice by 1 point on every split: a finding against it
-    runs = fig11_runs(lambda removed, cycles, split: 2.0 * (removed == 0.5 and cycles == 4) + 3.0 * (removed == 0.3 and cycles == 2))
+    runs = fig11_runs(lambda removed, cycles, split: 2.0 * (removed == 0.5 and cycles == 4)
+                      + 3.0 * (removed == 0.3 and cycles == 2))
     runs.to_csv(results / "fig11_cycles_ratio.csv", index=False)
     assert verdict("N = 4, ratio 0.5") == ledger.FAILS and verdict("More cycles help") == ledger.HOLDS
