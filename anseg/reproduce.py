@@ -62,6 +62,10 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
         os.environ["OMP_NUM_THREADS"] = "1"
         print("[anseg] OMP_NUM_THREADS=1 for the notebooks' kernels (the stored runs' setting); set it to choose",
               flush=True)
+    narrowed = [n for n in names if splits and "splits" in PER_NOTEBOOK[n][kind]]
+    if kind == "real" and out is None and narrowed:
+        print(f"[anseg] --splits {' '.join(map(str, splits))}: the committed outputs of {', '.join(narrowed)} "
+              "will cover these splits alone", flush=True)
     failed = 0
     for name in names:
         # relative to the notebooks' folder (their working directory): executed notebooks name no machine's paths

@@ -199,6 +199,22 @@ def test_chosen_splits_replace_the_plans_where_a_notebook_takes_several():
     assert planned_experiments("real", ["fig4", "table3"], splits=[3]) == planned_experiments("real", ["fig4", "table3"])
 
 
+def test_a_real_run_on_chosen_splits_says_which_committed_outputs_it_narrows(monkeypatch, capsys):
+    import papermill
+
+    from anseg import reproduce
+
+    def execute(source, target, **kwargs):
+        raise RuntimeError("not run in this test")  # nothing is written: the committed copies stay
+
+    monkeypatch.setattr(papermill, "execute_notebook", execute)
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")  # else the real run sets it for the rest of the test session
+    assert reproduce.run("real", only=["fig11", "claims"], splits=[0]) == 2
+    printed = capsys.readouterr().out
+    assert "--splits 0: the committed outputs of fig11_cycles_ratio.ipynb will cover these splits alone" in printed
+    assert "claims" not in printed.split("will cover")[0]
+
+
 def test_a_split_the_data_lacks_is_refused_in_one_line(capsys):
     from anseg.reproduce import main
 
