@@ -24,6 +24,7 @@ from anseg import reference
 from anseg.experiments import PLAIN_READING
 
 HOLDS, FAILS, UNTESTED = "holds", "does not hold", "cannot be tested here"
+SIGN_ALONE = " (one split: no spread, the sign decides)"  # how a paired difference of one split is read
 
 
 @dataclass(frozen=True)
@@ -221,7 +222,7 @@ class CyclesReading:
         text = f"**{self.category}**: best N = {cycles}, removing {removed:g} per cycle ({self.means[self.best]:.2f} %)"
         one_split = len(next(iter(self.climbs.values())).per_split) == 1
         beyond = "" if one_split else " by more than the spread"
-        note = " (one split: no spread, the sign decides)" if one_split else ""
+        note = SIGN_ALONE if one_split else ""
         choice = reference.FIG11_CHOICE
         if self.choice_gap is not None:
             chosen = self.means[(choice["removed"], choice["cycles"])]
@@ -278,8 +279,8 @@ def _cycles(results: Path) -> Verdict:
     held = sum(d.reading == HOLDS for d in climbs)
     peaks = "; ".join(f"{r.category} " + ", ".join(f"{removed:g}: {d.better}" for removed, d in r.climbs.items())
                       for r in readings)
-    beyond = f"by more than the spread over {splits} splits" if splits > 1 else "(one split: no spread, the sign decides)"
-    return Verdict(f"{held} of {len(climbs)} curves (category x share removed) climb from N = 1 to their peak {beyond} "
+    beyond = f" by more than the spread over {splits} splits" if splits > 1 else SIGN_ALONE
+    return Verdict(f"{held} of {len(climbs)} curves (category x share removed) climb from N = 1 to their peak{beyond} "
                    f"(peaks by share removed: {peaks})",
                    HOLDS if held > len(climbs) / 2 else FAILS)
 
@@ -298,7 +299,7 @@ def _best_setting(results: Path) -> Verdict:
                                            else ", within the spread")
         parts.append(part)
     below = any(r.choice_gap is None or r.choice_gap.reading == HOLDS for r in readings)
-    note = " (one split: no spread, the sign decides)" if splits == 1 else f" (means over {splits} splits)"
+    note = SIGN_ALONE if splits == 1 else f" (means over {splits} splits)"
     return Verdict("; ".join(parts) + note, FAILS if below else HOLDS)
 
 
