@@ -291,7 +291,9 @@ def _best_setting(results: Path) -> Verdict:
     parts = []
     for r in readings:
         removed, cycles = r.best
-        part = f"{r.category}: best N = {cycles}, removing {removed:g} ({r.means[r.best]:.2f})"
+        # the grid's range says whether "best" separates anything: a flat grid ties every choice
+        part = (f"{r.category}: best N = {cycles}, removing {removed:g} ({r.means[r.best]:.2f}; "
+                f"the {len(r.means)} points within {min(r.means.values()):.2f}-{max(r.means.values()):.2f})")
         if r.choice_gap is None:
             part += "; the paper's choice not run"
         else:

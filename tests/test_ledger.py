@@ -113,6 +113,8 @@ def test_fig11_is_read_from_differences_paired_over_the_splits(results):
     assert reading.climbs[0.3].better == "N = 6" and reading.climbs[0.3].reading == "within the spread"
     runs.to_csv(results / "fig11_cycles_ratio.csv", index=False)
     assert verdict("N = 4, ratio 0.5") == ledger.HOLDS
+    evidence = ledger.ledger(results).set_index("claim").loc["N = 4, ratio 0.5", "our evidence"]
+    assert "(92.04; the 8 points within 90.01-92.04)" in evidence  # how flat the grid is, beside its best point
     assert verdict("More cycles help") == ledger.FAILS  # 1 of 2 curves is not most
     # N = 2 removing 0.3 beats the paper's choice by 1 point on every split: a finding against it
     runs = fig11_runs(lambda removed, cycles, split: 2.0 * (removed == 0.5 and cycles == 4)
