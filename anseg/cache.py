@@ -14,6 +14,8 @@ import os
 import warnings
 import tempfile
 from collections.abc import Callable
+from functools import cache
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +32,26 @@ def cache_dir(*parts: str) -> Path:
     path = root.joinpath(*parts)
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+# The compiled libraries whose arithmetic the cached arrays come from: a new release may round otherwise.
+NUMERIC_LIBRARIES = ("numpy", "scipy", "libigl", "potpourri3d", "numba", "embreex", "pyamg")
+
+
+@cache
+def library_versions() -> dict[str, str | None]:
+    """The installed version of each of :data:`NUMERIC_LIBRARIES` (None where absent), part of every cache key.
+
+    A cache entry is an array some code computed; the key names that code, so
+    that a cache filled by other releases is never read as if ours had made it.
+    """
+    versions = {}
+    for name in NUMERIC_LIBRARIES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
 
 
 def _umask() -> int:

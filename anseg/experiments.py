@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from anseg import features
 from anseg.cache import atomic_write
 from anseg.pipeline import DOWNSAMPLING_MODES, SegmentConfig
 from anseg.train import TrainConfig, evaluate, fit_and_time
@@ -51,13 +52,6 @@ FEATURES_OF_STORED_RESULTS = {"version": 1, "sdf_rays": 16, "sdf_cone_degrees": 
                               "smooth_radii": (0.03, 0.1, 0.3)}
 
 
-def feature_code() -> dict:
-    """The version of the feature code and its default settings (what the pipeline computes features with)."""
-    from anseg import features
-
-    return {"version": features.FEATURES_VERSION, **asdict(features.FeatureSettings())}
-
-
 @dataclass
 class Experiment:
     """One trained-and-evaluated configuration: what a table cell is made of."""
@@ -77,7 +71,7 @@ class Experiment:
         """
         keyed = {part: {k: v for k, v in asdict(config).items() if SETTINGS_ADDED_LATER[part].get(k, object()) != v}
                  for part, config in (("segment", self.segment), ("train", self.train))}
-        if (code := feature_code()) != FEATURES_OF_STORED_RESULTS:
+        if (code := features.code()) != FEATURES_OF_STORED_RESULTS:
             keyed["features"] = code
         text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
                            **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
@@ -85,7 +79,8 @@ class Experiment:
 
 
 def environment() -> dict:
-    """Versions, hardware (and the torch threads a replay needs), the code revision and the date (UTC), kept with every result."""
+    """Versions, hardware (and the torch threads a replay needs), the code revision, the features' fingerprint and the
+    date (UTC), kept with every result."""
     from datetime import datetime, timezone
 
     import sklearn
@@ -97,7 +92,8 @@ def environment() -> dict:
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
         "cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
         "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-        **code_revision(), "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        **code_revision(), "features": features.fingerprint(),
+        "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
 
 
@@ -444,7 +440,7 @@ def _describe(experiment) -> str:
 
 def _precompute_features(plan, jobs: int) -> None:
     """Fill the feature cache for every mesh of the plan, one process pool per feature set, before training starts."""
-    from anseg import datasets, features
+    from anseg import datasets
 
     sources = {}
     for experiment, extra in plan:

@@ -75,6 +75,7 @@ original faces on coarse levels (the pipeline does that pooling).
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, fields
@@ -84,15 +85,18 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from anseg.cache import atomic_write, cache_dir, read_checked_array, write_checked_array
+from anseg.cache import atomic_write, cache_dir, library_versions, read_checked_array, write_checked_array
 from anseg import diffusion, geodesic, proxy, rays, sdf
 from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
-from anseg.spectral import SPECTRUM_PAIRS, laplacian_eigenpairs
+from anseg.spectral import SPECTRUM_PAIRS, SPECTRUM_VERSION, laplacian_eigenpairs
 
-FEATURES_VERSION = 1
+FEATURES_VERSION = 1  # the feature code as a whole; stored keys and model files name it (see :func:`code`)
 
 GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd", "smooth", "hks")
+# Each group's version: raise it whenever the group's output on a fixed mesh changes, however little
+# (tests/test_feature_versions.py holds the digest of each group's output and fails until both agree).
+GROUP_VERSIONS = {"edge": 1, "angles": 1, "ratios": 1, "gc": 1, "sdf": 1, "agd": 1, "smooth": 1, "hks": 1}
 DEFAULT_GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd")
 LOCAL_GROUPS = ("edge", "angles", "ratios", "gc")
 GLOBAL_GROUPS = ("sdf", "agd", "smooth", "hks")
@@ -398,6 +402,31 @@ def _heat_kernel_signature(mesh: Mesh, n_pairs: int, times: np.ndarray) -> np.nd
 
 
 # ------------------------------------------------------------------ public
+def code() -> dict:
+    """What decides the features beside the mesh: the code's version, the default settings and any raised group version.
+
+    Experiment keys and model files carry it, so that no stored result or model
+    is reused on other features. A group at version 1 stays out, so the keys
+    of results stored before group versions existed are unchanged.
+    """
+    raised = {f"{group}_version": v for group, v in GROUP_VERSIONS.items() if v != 1}
+    return {"version": FEATURES_VERSION, **asdict(FeatureSettings()), **raised}
+
+
+def fingerprint(settings: FeatureSettings | None = None) -> str:
+    """A short hash of everything that computes the features: every group's version, the settings, the
+    eigenbasis's version and the numeric libraries' releases.
+
+    It keys the cache (a cache filled by other code is never read) and every
+    stored run names it (``environment()["features"]``), so a result says which
+    features it was trained and scored on.
+    """
+    text = json.dumps({"features": FEATURES_VERSION, "groups": GROUP_VERSIONS, "spectrum": SPECTRUM_VERSION,
+                       "settings": asdict(settings or FeatureSettings()), "libraries": library_versions()},
+                      sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = False, progress: bool = False,
                    **settings) -> dict[str, np.ndarray]:
     """Each requested group's (F, d) float32 block, by name, in the order asked.
@@ -435,7 +464,7 @@ def compute(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = Tr
     """(F, D) float32 per-face features, the groups' columns side by side (:func:`feature_names`).
 
     Cached on disk under ``cache_dir("features")``, keyed by the mesh arrays,
-    the groups, the settings and :data:`FEATURES_VERSION`; a damaged entry is
+    the groups and the :func:`fingerprint` of the code and settings; a damaged entry is
     reported (RuntimeWarning), removed and recomputed. ``cache=False``
     neither reads nor writes the cache. Settings are the fields of
     :class:`FeatureSettings`; errors as in :func:`compute_groups`.
@@ -505,9 +534,7 @@ def _compute_arrays(vertices, faces, groups, cache, settings) -> np.ndarray:
 
 # -------------------------------------------------------------------- cache
 def _cache_path(mesh: Mesh, groups: tuple[str, ...], settings: FeatureSettings) -> Path:
-    digest = hashlib.sha256()
-    # "sha256": the entry ends with its checksum (entries written before it are not looked for)
-    digest.update(f"anseg-features v{FEATURES_VERSION}|sha256|{groups}|{sorted(asdict(settings).items())}|".encode())
+    digest = hashlib.sha256(f"anseg-features {fingerprint(settings)}|{groups}|".encode())
     if mesh.n_faces > proxy.LARGE_MESH_FACES:  # the large-mesh paths compute otherwise than before they existed
         digest.update(f"large mesh: embree sdf, agd, hks and smooth proxy {proxy.PROXY_FACES}|".encode())
     digest.update(f"{mesh.vertices.shape}{mesh.faces.shape}".encode())

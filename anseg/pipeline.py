@@ -215,9 +215,10 @@ class Segmenter:
 
 
 def feature_code() -> dict:
-    """What decides the features a model reads: the feature code's version and settings, and the eigenbasis's version."""
-    return {"features": features.FEATURES_VERSION, **asdict(features.FeatureSettings()),
-            "spectrum": spectral.SPECTRUM_VERSION}
+    """What decides the features a model reads, as model files record it: :func:`anseg.features.code` (its
+    ``version`` named ``features``) and the eigenbasis's version."""
+    code = features.code()
+    return {"features": code.pop("version"), **code, "spectrum": spectral.SPECTRUM_VERSION}
 
 
 def _differences(theirs: dict, ours: dict) -> str:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from anseg import proxy
-from anseg.cache import atomic_write, cache_dir, read_checked_array, write_checked_array
+from anseg.cache import atomic_write, cache_dir, library_versions, read_checked_array, write_checked_array
 from anseg.mesh import Mesh
 
 SPECTRUM_PAIRS = 64  # eigenpairs of the HKS and of the network's spectrum
@@ -120,7 +120,8 @@ def face_spectrum(mesh: Mesh, n_pairs: int = SPECTRUM_PAIRS, cache: bool = True)
 
 
 def _cache_path(mesh: Mesh, n_pairs: int):
-    digest = hashlib.sha256(f"anseg-spectrum v{SPECTRUM_VERSION}|{n_pairs}|{mesh.vertices.shape}{mesh.faces.shape}|".encode())
+    digest = hashlib.sha256(f"anseg-spectrum v{SPECTRUM_VERSION}|{sorted(library_versions().items())}|{n_pairs}|"
+                            f"{mesh.vertices.shape}{mesh.faces.shape}|".encode())
     digest.update(mesh.vertices.tobytes())
     digest.update(mesh.faces.tobytes())
     return cache_dir("spectra") / f"{digest.hexdigest()}.npy"

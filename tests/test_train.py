@@ -191,6 +191,9 @@ def test_a_change_of_feature_code_changes_every_key(monkeypatch):
     assert base.key() == "b1e98aa45e21a4b6"
     monkeypatch.setattr(features, "FeatureSettings", partial(features.FeatureSettings, sdf_rays=24))
     assert base.key() != "b1e98aa45e21a4b6"
+    monkeypatch.undo()
+    monkeypatch.setitem(features.GROUP_VERSIONS, "sdf", 2)
+    assert base.key() != "b1e98aa45e21a4b6"
 
 
 def test_coarse_context_trains_and_segments_from_the_input_level(split):
