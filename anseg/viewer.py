@@ -9,13 +9,19 @@ export drops text and legends, so the legend and the key to the rows are
 written into the page itself. :func:`explore` is the live counterpart in a
 Jupyter session: one mesh at a time, a slider for the level and a choice of
 labels, attention or confidence, through pyvista's trame backend.
+
+Neither needs a network: both draw with vtk.js, which trame-vtk ships in its
+wheel, and VTK on the Python side (see :func:`_without_vtk_wasm`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import html
 import json
 import os
+import re
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -87,7 +93,8 @@ def explore(result, label_names, jupyter_backend: str = "trame"):
 
     view = None
     show()
-    view = plotter.show(jupyter_backend=jupyter_backend, return_viewer=True)
+    with _without_vtk_wasm():
+        view = plotter.show(jupyter_backend=jupyter_backend, return_viewer=True)
     slider.observe(show, names="value")
     choice.observe(show, names="value")
     legend = ipywidgets.HTML(f'<div style="font:13px sans-serif;max-width:22em">{_swatches(label_names, result.labels)}'
@@ -125,7 +132,8 @@ def write_html(result, label_names, path: str | os.PathLike, title: str = "anseg
             plotter.add_mesh(surface, scalars="colours", rgb=True, preference="cell", smooth_shading=False)
         plotter.view_xy()
         scratch = Path(path).with_name(f".{Path(path).name}.export.html")
-        plotter.trame.export_html(str(scratch))
+        with _without_vtk_wasm():
+            plotter.trame.export_html(str(scratch))
     finally:
         plotter.close()
     try:
@@ -133,6 +141,7 @@ def write_html(result, label_names, path: str | os.PathLike, title: str = "anseg
     finally:
         scratch.unlink(missing_ok=True)
     page = page.replace("<title>VTK.js | Example - OfflineLocalView</title>", f"<title>{html.escape(title)}</title>")
+    page = _offline(page)
     # the viewer empties <body> when it starts, so the legend is added beside it once the page has loaded
     legend = json.dumps(_legend(label_names, result.labels, len(result.levels), title)).replace("</", "<\\/")
     script = ("<script>window.addEventListener('load', function () { var box = document.createElement('div'); "
@@ -140,6 +149,56 @@ def write_html(result, label_names, path: str | os.PathLike, title: str = "anseg
     head = page.index("</head>")
     page = page[:head] + script + page[head:]
     return atomic_write(path, lambda tmp: tmp.write_text(page))
+
+
+@contextlib.contextmanager
+def _without_vtk_wasm():
+    """Launch pyvista's trame server as if trame-vtklocal were not installed.
+
+    trame-pyvista enables trame-vtklocal (VTK compiled to WebAssembly) on the
+    server it launches whenever it can import it, and that module's setup
+    downloads VTK's WebAssembly build for the installed VTK from
+    gitlab.kitware.com. Our views never use it (the live one draws with VTK
+    and vtk.js, the page with vtk.js), so the download is only a network
+    request: offline it fails, and its traceback lands in the notebook cell,
+    or on stderr, every time. With the module hidden from ``import`` while the
+    server starts, trame-pyvista skips it, as it does wherever it cannot
+    import it. Once started, the server serves every later view of the
+    process, so the first launch is the one that counts.
+    """
+    import trame.widgets
+
+    name = "trame.widgets.vtklocal"
+    module, attribute = sys.modules.get(name), trame.widgets.__dict__.pop("vtklocal", None)
+    sys.modules[name] = None  # an import of it raises ImportError, which trame-pyvista skips
+    try:
+        yield
+    finally:
+        if module is None:
+            del sys.modules[name]
+        else:
+            sys.modules[name] = module
+        if attribute is not None:
+            trame.widgets.vtklocal = attribute
+
+
+# the page may fetch nothing from anywhere: scripts, styles and images come inline (or as data:/blob: URLs)
+_NO_FETCH = ("<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; "
+             "script-src 'unsafe-inline' 'unsafe-eval'; style-src 'unsafe-inline'; img-src data: blob:; "
+             "font-src data:; connect-src data: blob:; worker-src blob:\">")
+
+
+def _offline(page: str) -> str:
+    """The exported page, made to request nothing off this machine.
+
+    vtk.js adds five favicon links to kitware.github.io when it loads; they
+    become empty ``data:`` icons. The Content-Security-Policy tells the
+    browser to fetch nothing that is not in the page, so whatever a later
+    vtk.js adds fails at once instead of reaching out.
+    """
+    page = re.sub(r"https?://[^\s\"'`]*/favicon[^\s\"'`]*", "data:,", page)
+    head = page.index("<head>") + len("<head>")
+    return page[:head] + _NO_FETCH + page[head:]
 
 
 def _unit(mesh: Mesh) -> Mesh:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import numpy as np
 import pytest
@@ -37,6 +39,97 @@ def screenshot_folder(default: Path) -> Path:
     folder = Path(os.environ.get("ANSEG_SCREENSHOTS", default))
     folder.mkdir(parents=True, exist_ok=True)
     return folder
+
+
+# Chromium flags for the browser tests: every host name but this machine's fails to resolve, so a page draws
+# with what is on the machine or not at all; Chromium's own services that ask about a page (form autofill) are
+# off, so that what page_requests finds in the net log is the page's doing
+OFFLINE = ["--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE localhost, EXCLUDE 127.0.0.1",
+           "--disable-background-networking", "--disable-features=AutofillServerCommunication"]
+LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1")
+
+
+def page_requests(net_log: Path, site: str) -> list[str]:
+    """The URLs Chromium requested for pages of ``site`` (``file://``, ``http://127.0.0.1``), read from its net log.
+
+    A request made for a page carries the page's site in its network isolation
+    key; Chromium's own background requests (updates, accounts) carry no such
+    site, so they are left out. The log is read line by line: Chromium writes one event
+    a line and leaves the file unterminated when it is killed.
+    """
+    urls = set()
+    for line in net_log.read_text(errors="replace").splitlines():
+        if '"network_isolation_key":"' + site in line:
+            try:
+                params = json.loads(line.rstrip(",")).get("params", {})
+            except ValueError:  # the last line of a log cut short
+                continue
+            if params.get("network_isolation_key", "").startswith(site) and "url" in params:
+                urls.add(params["url"])
+    return sorted(urls)
+
+
+def off_machine(urls) -> list[str]:
+    """Those of ``urls`` that leave this machine (data:, blob: and file: URLs, and loopback hosts, stay)."""
+    return [url for url in urls if urlsplit(url).scheme not in ("data", "blob", "file")
+            and urlsplit(url).hostname not in LOCAL_HOSTS]
+
+
+_GUARD = """\
+\"\"\"Started with each Python process of an offline test (on PYTHONPATH): a host-name lookup or a connection that
+would leave this machine fails, and is written to $ANSEG_OFFLINE_LOG.\"\"\"
+import ipaddress
+import os
+import socket
+
+
+def _local(host):
+    host = host.decode() if isinstance(host, bytes) else host
+    if host in (None, "", "localhost"):
+        return True
+    try:
+        address = ipaddress.ip_address(host.split("%")[0])
+    except ValueError:
+        return False
+    return address.is_loopback or address.is_unspecified
+
+
+def _refuse(host, error):
+    with open(os.environ["ANSEG_OFFLINE_LOG"], "a") as log:
+        log.write(f"{host}\\n")
+    raise error
+
+
+def _getaddrinfo(host, *args, _real=socket.getaddrinfo, **kwargs):
+    if not _local(host):
+        _refuse(host, socket.gaierror(socket.EAI_NONAME, f"offline test: no lookup of {host}"))
+    return _real(host, *args, **kwargs)
+
+
+def _guarded(real):
+    def connect(self, address):
+        if self.family in (socket.AF_INET, socket.AF_INET6) and not _local(address[0]):
+            _refuse(address[0], OSError(f"offline test: no connection to {address[0]}"))
+        return real(self, address)
+    return connect
+
+
+socket.getaddrinfo = _getaddrinfo
+socket.socket.connect = _guarded(socket.socket.connect)
+socket.socket.connect_ex = _guarded(socket.socket.connect_ex)
+"""
+
+
+def offline_python(folder: Path) -> tuple[dict, Path]:
+    """Environment variables for Python child processes that may not leave this machine, and the file that lists
+    the hosts they tried to reach (absent when none). Offline, a lookup fails at once and leaves only a traceback
+    somewhere; the list lets a test fail on the attempt itself."""
+    guard = folder / "offline-python"
+    guard.mkdir(parents=True, exist_ok=True)
+    (guard / "sitecustomize.py").write_text(_GUARD)
+    log = folder / "outside-attempts.log"
+    path = os.pathsep.join(filter(None, [str(guard), os.environ.get("PYTHONPATH")]))
+    return {"PYTHONPATH": path, "ANSEG_OFFLINE_LOG": str(log)}, log
 
 
 def grid_mesh(n: int = 4, closed: bool = False) -> Mesh:

@@ -5,7 +5,10 @@ mesh and shows :func:`anseg.viewer.explore` (pyvista's trame backend), opens
 it in Chromium, runs it through JupyterLab's own command, and reads
 screenshots over the DevTools protocol. The screenshots are kept in the
 test's temporary folder (``lab_labels.png``, ``lab_attention.png``), or in
-``$ANSEG_SCREENSHOTS`` when that is set.
+``$ANSEG_SCREENSHOTS`` when that is set. Nothing may leave the machine: in
+Chromium, host names other than this machine's do not resolve, and in the
+server's and the kernel's Python, an outside lookup or connection fails and is
+logged; the test fails on any such attempt, by the page or by the kernel.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ import torch
 
 from anseg import datasets
 from anseg.mesh import save_mesh
-from conftest import screenshot_folder
+from conftest import OFFLINE, off_machine, offline_python, page_requests, screenshot_folder
 from anseg.pipeline import SegmentConfig, Segmenter, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
@@ -70,9 +73,11 @@ class Browser:
     def __init__(self, folder: Path):
         websocket = pytest.importorskip("websocket", reason="websocket-client (a JupyterLab dependency) is missing")
         profile = folder / "chromium"
+        self.net_log = folder / "chromium.netlog.json"
         self.process = subprocess.Popen(
             [CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-             "--remote-debugging-port=0", f"--user-data-dir={profile}", "--window-size=1400,1200", "about:blank"],
+             *OFFLINE, f"--log-net-log={self.net_log}", "--remote-debugging-port=0", f"--user-data-dir={profile}",
+             "--window-size=1400,1200", "about:blank"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         active = profile / "DevToolsActivePort"
         port = _wait(lambda: active.is_file() and active.read_text().split()[:1], 60, "Chromium's DevTools port")[0]
@@ -98,8 +103,12 @@ class Browser:
         return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 
     def close(self):
+        self.socket.send(json.dumps({"id": 0, "method": "Browser.close"}))  # a clean exit completes the net log
         self.socket.close()
-        self.process.kill()
+        try:
+            self.process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
 
 
 @pytest.fixture(scope="module")
@@ -120,13 +129,15 @@ def lab(tmp_path_factory):
         "cells": cells, "nbformat": 4, "nbformat_minor": 5,
         "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3", "language": "python"}}}))
     port = _free_port()
+    offline, attempts = offline_python(folder)
     private = {name: str(folder / name.lower()) for name in
                ("JUPYTER_DATA_DIR", "JUPYTERLAB_SETTINGS_DIR", "JUPYTERLAB_WORKSPACES_DIR", "JUPYTER_RUNTIME_DIR")}
     server = subprocess.Popen(
         [sys.executable, "-m", "jupyterlab", "--no-browser", f"--port={port}", "--ServerApp.ip=127.0.0.1",
          f"--IdentityProvider.token={TOKEN}", f"--ServerApp.root_dir={folder}", "--LabApp.expose_app_in_browser=True",
          "--allow-root"],
-        stdout=(folder / "lab.log").open("w"), stderr=subprocess.STDOUT, env={**os.environ, **private, "OMP_NUM_THREADS": "1"})
+        stdout=(folder / "lab.log").open("w"), stderr=subprocess.STDOUT,
+        env={**os.environ, **private, **offline, "OMP_NUM_THREADS": "1"})
 
     def up():
         try:
@@ -136,7 +147,7 @@ def lab(tmp_path_factory):
 
     try:
         _wait(up, 120, "the JupyterLab server")
-        yield folder, port, model.label_names, labels
+        yield folder, port, model.label_names, labels, attempts
     finally:
         server.terminate()
         server.wait(timeout=30)
@@ -173,7 +184,7 @@ def _screenshot_when(browser: Browser, test, seconds: float, what: str, folder: 
 
 
 def test_the_view_turns_in_jupyterlab_and_follows_its_controls(lab):
-    folder, port, names, labels = lab
+    folder, port, names, labels, attempts = lab
     browser = Browser(folder)
     try:
         browser.call("Page.navigate", url=f"http://127.0.0.1:{port}/lab/tree/view.ipynb?token={TOKEN}")
@@ -202,3 +213,6 @@ def test_the_view_turns_in_jupyterlab_and_follows_its_controls(lab):
         assert switched[y:y + h, x:x + w].std() > 10, "a blank view after the switch"
     finally:
         browser.close()
+    requested = page_requests(browser.net_log, "http://127.0.0.1")
+    assert requested and not off_machine(requested), f"the page asked for {off_machine(requested)}"
+    assert not attempts.exists(), f"the server or the kernel tried to reach {attempts.read_text().split()}"

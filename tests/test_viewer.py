@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -14,7 +16,7 @@ from anseg import datasets, viewer
 from anseg.pipeline import SegmentConfig, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
-from conftest import screenshot_folder
+from conftest import OFFLINE, off_machine, offline_python, page_requests, screenshot_folder
 
 CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None)
 
@@ -54,10 +56,17 @@ def scan_page(page):
     return out, labels, names  # the page names the model's labels; the colours depend on their number alone
 
 
+# where a page names what a browser loads: an element's src or href, a link made by script, a CSS url(), a fetch,
+# an import; the quote may be a template literal's backtick
+LOADS = re.compile(r"""(?:\b(?:src|href|data|action)\s*=\s*|setAttribute\(\s*["'](?:src|href)["']\s*,\s*|"""
+                   r"""\burl\(\s*|\b(?:fetch|import|importScripts)\s*\(\s*|@import\s+)["'`]?\s*(?:https?:)?//""", re.I)
+
+
 def test_the_page_is_self_contained_with_a_legend(page):
     path, result, names = page
     text = path.read_text()
-    assert not re.search(r"<(script|link|img)[^>]+(src|href)=[\"']https?://", text)  # nothing fetched from a network
+    assert not [text[m.start():m.end() + 60] for m in LOADS.finditer(text)]  # nothing fetched from a network
+    assert "default-src 'none'" in text  # and the browser is told to fetch nothing that is not in the page
     assert "&lt;b&gt;&amp;odd&lt;/b&gt;" in text and "<b>&odd</b>" not in text
     assert text.count("coarser levels") == 1
     n_panels = len(viewer.panels(result, len(names)))
@@ -65,13 +74,18 @@ def test_the_page_is_self_contained_with_a_legend(page):
 
 
 def _screenshot(path, name: str, folder):
-    """Headless Chromium's picture of a page, kept in ``$ANSEG_SCREENSHOTS`` when that is set."""
+    """Headless Chromium's picture of a page opened with no network, kept in ``$ANSEG_SCREENSHOTS`` when that is set.
+
+    Fails when the page asked for anything off this machine (a favicon included).
+    """
     from PIL import Image
 
     out = screenshot_folder(folder)
+    net_log = folder / f"{name}.netlog.json"
     subprocess.run([CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-                    "--virtual-time-budget=8000", "--window-size=1200,800", f"--screenshot={out / name}", path.as_uri()],
-                   capture_output=True, timeout=120, check=True)
+                    *OFFLINE, f"--log-net-log={net_log}", "--virtual-time-budget=8000", "--window-size=1200,800",
+                    f"--screenshot={out / name}", path.as_uri()], capture_output=True, timeout=120, check=True)
+    assert not off_machine(page_requests(net_log, "file://")), "the page asked for something off this machine"
     return np.asarray(Image.open(out / name).convert("RGB")).astype(int)
 
 
@@ -95,6 +109,23 @@ def test_a_browser_draws_a_repaired_stl_scan_from_the_command_line(scan_page, tm
     path, labels, names = scan_page
     assert "anseg-legend" in path.read_text()
     _assert_drawn_in(_screenshot(path, "viewer_scan_stl.png", tmp_path), labels, len(names))
+
+
+def test_the_command_line_writes_a_page_without_reaching_off_the_machine(page, tmp_path):
+    """`anseg segment --html` in a child process whose every outside lookup or connection fails and is logged."""
+    from anseg.mesh import save_mesh
+
+    path, result, _ = page
+    save_mesh(tmp_path / "mesh.off", result.levels[0].mesh)
+    env, attempts = offline_python(tmp_path)
+    args = ["segment", "--model", str(path.parent / "figure.pt"), str(tmp_path / "mesh.off"), "--html",
+            str(tmp_path / "view.html"), "-o", str(tmp_path / "mesh.ply")]
+    run = subprocess.run([sys.executable, "-c", f"from anseg.cli import main; raise SystemExit(main({args!r}))"],
+                         env={**os.environ, **env, "OMP_NUM_THREADS": "1"}, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert not attempts.exists(), f"tried to reach {attempts.read_text().split()}"
+    assert "Traceback" not in run.stderr and "Task exception" not in run.stderr, run.stderr
+    assert (tmp_path / "view.html").is_file()
 
 
 def test_the_live_view_follows_its_slider_and_colouring(page):
