@@ -1,7 +1,8 @@
 """How a validation study's arms compare: paired differences over categories x folds, their cost, the seeds' spread.
 
 The numbers :mod:`anseg.validate` prints and writes for a study: per arm and
-category the mean held-out accuracy (Eq. 5, unit area), the suite mean (the
+category the mean held-out accuracy (Eq. 5, unit area) beside the accuracy on
+the cells' own training meshes, the suite mean (the
 mean over categories) with the spread of that mean over the fold x seed
 replicates, and for each arm against the baseline the paired difference: per
 (category, fold) the mean over seeds of arm minus baseline, averaged, with a
@@ -74,6 +75,17 @@ def training_cost(results: list[dict], arm: str, baseline: str) -> float:
     return sum(ours[c] for c in shared) / sum(theirs[c] for c in shared)
 
 
+def training_fit(results: list[dict], arm: str, category: str) -> float:
+    """The arm's mean accuracy in % on its own training meshes in that category (NaN where no cell recorded it).
+
+    Beside the held-out accuracy it tells bias from variance: a network that
+    cannot fit its training meshes needs optimisation or information, not regularisation.
+    """
+    values = [100 * r["train_accuracy"]["unit_area"] for r in results
+              if r["arm"] == arm and r["category"] == category and "train_accuracy" in r]
+    return float(np.mean(values)) if values else float("nan")
+
+
 def seed_spread(table: dict) -> list[dict]:
     """How far each arm moves from seed to seed, over the (category, fold) cells run with two seeds or more.
 
@@ -112,14 +124,17 @@ def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict
             values = [v for k, v in cells.items() if k[1] == category]
             if values:
                 rows.append({"arm": arm, "category": category, "mean": float(np.mean(values)),
-                             "std": float(np.std(values, ddof=1)) if len(values) > 1 else float("nan"), "runs": len(values)})
+                             "std": float(np.std(values, ddof=1)) if len(values) > 1 else float("nan"), "runs": len(values),
+                             "train_mean": training_fit(results, arm, category)})
         replicates = {}
         for (_, category, fold, seed), value in cells.items():
             replicates.setdefault((fold, seed), {})[category] = value
         complete = [np.mean(list(r.values())) for r in replicates.values() if len(r) == len(categories)]
         means = [row["mean"] for row in rows if row["arm"] == arm]
+        fits = [row["train_mean"] for row in rows if row["arm"] == arm]
         rows.append({"arm": arm, "category": "suite mean", "mean": float(np.mean(means)),
-                     "std": float(np.std(complete, ddof=1)) if len(complete) > 1 else float("nan"), "runs": len(cells)})
+                     "std": float(np.std(complete, ddof=1)) if len(complete) > 1 else float("nan"), "runs": len(cells),
+                     "train_mean": float(np.mean(fits))})
     comparisons = [{**paired_difference(table, arm, baseline), "cost": training_cost(results, arm, baseline)}
                    for arm in arms if arm != baseline]
     return rows, comparisons
@@ -134,8 +149,9 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
         if table:
             text = csv_text(table)
             atomic_write(out / f"{study}_{name}.csv", lambda tmp, text=text: tmp.write_text(text))
-    lines = [f"{'arm':<24} {'category':<12} {'mean':>7} {'std':>6} {'runs':>4}"]
-    lines += [f"{r['arm']:<24} {r['category']:<12} {r['mean']:7.2f} {r['std']:6.2f} {r['runs']:4d}" for r in rows]
+    lines = [f"{'arm':<24} {'category':<12} {'mean':>7} {'std':>6} {'runs':>4} {'on its training meshes':>22}"]
+    lines += [f"{r['arm']:<24} {r['category']:<12} {r['mean']:7.2f} {r['std']:6.2f} {r['runs']:4d} {r['train_mean']:22.2f}"
+              for r in rows]
     if comparisons:
         lines.append(f"\npaired difference against {baseline!r} (95 % bootstrap over categories, then folds):")
         if len({r["seed"] for r in results}) == 1:

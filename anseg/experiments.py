@@ -91,6 +91,7 @@ def environment() -> dict:
         "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
         "cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
+        "torch_kernels": torch.backends.cpu.get_cpu_capability(),  # another instruction set rounds otherwise
         "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
         **code_revision(), "features": features.fingerprint(),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
@@ -179,13 +180,16 @@ def train_and_evaluate(experiment: Experiment, dataset_options: dict | None = No
                                                            checkpoint, progress)
     started = time.time()
     scores = evaluate(model, test_set, progress=progress)
+    evaluate_seconds = time.time() - started
+    fit = evaluate(model, train_set, progress=False)  # bias or variance: read, not guessed
     result = {
         "key": experiment.key(dataset_options), "dataset": experiment.dataset, "category": experiment.category,
         "split_index": experiment.split_index, "dataset_options": dataset_options,
         "segment": asdict(experiment.segment), "train": asdict(experiment.train),
         "n_train": len(train_set), "n_test": len(test_set), "label_names": label_names,
         "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
-        "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds, "evaluate_seconds": time.time() - started,
+        "train_accuracy": fit["smoothed"], "train_per_mesh": fit["per_mesh"],
+        "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds, "evaluate_seconds": evaluate_seconds,
         "environment": environment(),
     }
     return result, model.to_bytes()

@@ -157,13 +157,14 @@ def compute_cell(cell: Cell, root=None, model: bytes | None = None, checkpoint: 
     else:
         network, train_seconds, train_cpu_seconds = Segmenter.load(io.BytesIO(model)), 0.0, 0.0
     scores = evaluate(network, held_out, segment, progress=False)
+    fit = evaluate(network, train_set, segment, progress=False)  # its own training meshes: bias against variance
     result = {
         "key": cell.key(), "training_key": cell.training_key(), "arm": cell.arm.name, "category": cell.category,
         "fold": cell.fold, "folds": cell.folds, "seed": cell.seed, "dataset": cell.dataset,
         "split_index": cell.split_index, "segment": asdict(segment), "train": asdict(train),
         "train_meshes": [m.name for m in train_set], "held_out": [m.name for m in held_out],
         "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
-        "trained": trained, "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds,
+        "train_accuracy": fit["smoothed"], "train_per_mesh": fit["per_mesh"], "trained": trained, "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds,
         "environment": environment(),
     }
     return result, (network.to_bytes() if trained else None)

@@ -143,6 +143,24 @@ def test_the_figures_models_are_those_the_figure_notebooks_render():
     assert sorted(run.row["features"] for run in chosen["fig12_features.ipynb"]) == sorted([*ABLATION_SETS, OWN_FEATURES])
 
 
+# Every stored run's network ran torch's AVX-512 kernels (the project's machines). Another CPU's kernels round the
+# network's outputs otherwise in their last bits, and the collapse order those outputs decide can move labels.
+# Emulated on an AVX-512 machine (ATEN_CPU_CAPABILITY=avx2 MKL_ENABLE_INSTRUCTIONS=AVX2 OPENBLAS_CORETYPE=Haswell
+# NUMBA_CPU_NAME=haswell), the features stayed bit for bit the same and 7 of the 20 shipped models' first test meshes
+# moved, by at most 1.94 points (Vase/362; Hand/182 0.57): exact where the kernels are the stored runs', within that
+# measured tolerance elsewhere.
+STORED_KERNELS = "AVX512"
+OTHER_KERNELS_TOLERANCE = 0.02
+
+
+def assert_reproduces(accuracy: float, stored: float) -> None:
+    """Float for float on the stored runs' kernels; within :data:`OTHER_KERNELS_TOLERANCE` on other CPUs."""
+    if torch.backends.cpu.get_cpu_capability() == STORED_KERNELS:
+        assert accuracy == stored
+    else:
+        assert abs(accuracy - stored) <= OTHER_KERNELS_TOLERANCE
+
+
 def test_the_shipped_psb_human_model_reproduces_its_table_i_run(data_root, tmp_path):
     """The issue's promise: `anseg segment --model psb/Human <a split-0 test mesh>` gives that run's labels, untrained."""
     import json
@@ -162,7 +180,7 @@ def test_the_shipped_psb_human_model_reproduces_its_table_i_run(data_root, tmp_p
     assert main(["segment", "--model", "psb/Human", str(mesh_file), "-o", str(out), "-q"]) == 0
     labels = np.loadtxt(tmp_path / "labels.txt", dtype=int)
     expected = next(m["accuracy"] for m in stored["per_mesh"] if m["name"] == item.name)
-    assert metrics.accuracy(labels, item.labels, item.mesh.face_areas) == expected  # float for float
+    assert_reproduces(metrics.accuracy(labels, item.labels, item.mesh.face_areas), expected)
 
 
 @pytest.mark.parametrize("name", pretrained.names())
@@ -178,7 +196,7 @@ def test_every_shipped_model_gives_its_runs_labels_on_a_test_mesh(name, data_roo
                          progress=False)[0]
     expected = next(m["accuracy"] for m in stored["per_mesh"] if m["name"] == item.name)
     labels = segment(item.mesh, Segmenter.pretrained(name)).labels
-    assert metrics.accuracy(labels, item.labels, item.mesh.face_areas) == expected  # float for float
+    assert_reproduces(metrics.accuracy(labels, item.labels, item.mesh.face_areas), expected)
 
 
 def test_explore_uses_a_shipped_model_only_under_its_configuration(shipped):

@@ -90,11 +90,20 @@ def test_report_names_the_verdict(tmp_path):
     text = comparison.write_report(results, "default", tmp_path, "demo")
     assert "better" in text and "no verdict on fewer than 3 categories" in text and "one seed" in text
     rows = (tmp_path / "demo_accuracy.csv").read_text().splitlines()
-    assert rows[0] == "arm,category,mean,std,runs"
-    assert "default,suite mean,71.0000,1.0000,6" in rows  # folds score 70, 71, 72: mean 71, spread 1
+    assert rows[0] == "arm,category,mean,std,runs,train_mean"
+    assert "default,suite mean,71.0000,1.0000,6,nan" in rows  # folds score 70, 71, 72: mean 71, spread 1; no fit recorded
     assert (tmp_path / "demo_paired.csv").is_file()
     more = [{**r, "category": f"{r['category']}{k}"} for r in results for k in range(2)]  # 4 categories
     assert "adopt" in comparison.write_report(more, "default", tmp_path, "demo4")
+
+
+def test_report_sets_the_fit_on_training_meshes_beside_the_held_out_accuracy(tmp_path):
+    results = [{"arm": "default", "category": cat, "fold": f, "seed": 0, "accuracy": {"unit_area": 0.8},
+                "train_accuracy": {"unit_area": fit}} for cat, fit in (("A", 0.9), ("B", 0.99)) for f in range(3)]
+    text = comparison.write_report(results, "default", tmp_path, "fit")
+    assert "on its training meshes" in text
+    rows = (tmp_path / "fit_accuracy.csv").read_text().splitlines()
+    assert "default,A,80.0000,0.0000,3,90.0000" in rows and "default,suite mean,80.0000,0.0000,6,94.5000" in rows
 
 
 def test_training_cost_compares_cpu_seconds_on_the_cells_both_trained(tmp_path):
