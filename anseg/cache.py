@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import hashlib
 import os
-import warnings
 import tempfile
+import warnings
 from collections.abc import Callable
 from functools import cache
 from importlib import metadata

@@ -1,4 +1,4 @@
-"""The ``anseg`` command: train, segment, evaluate, features, validate.
+"""The ``anseg`` command: train, segment, evaluate, features, models.
 
 Examples::
 
@@ -7,10 +7,11 @@ Examples::
     anseg segment human.pt mesh.off -o mesh_labels.ply
     anseg evaluate human.pt --dataset psb --category Human --split 0
     anseg features mesh.off -o mesh_features.npy
-    anseg validate --study width --arm default --arm wide:train.width=128 --categories Human Hand
 
 Data sets are read from ``--data`` or ``$ANSEG_DATA``. Bad input ends with a
-one-line message and a non-zero exit status, never a traceback.
+one-line message and a non-zero exit status, never a traceback. Validation
+studies, which compare settings on training meshes, belong to the study
+(``python -m anseg.study.validate``), not to the library.
 """
 
 from __future__ import annotations
@@ -54,7 +55,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"anseg {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    train = commands.add_parser("train", help="train a model on one category", description="Train on a split's training meshes and save the model.")
+    train = commands.add_parser("train", help="train a model on one category",
+                                description="Train on a split's training meshes and save the model.")
     _add_data_options(train)
     train.add_argument("-o", "--output", required=True, type=Path, help="model file to write (.pt)")
     train.add_argument("--config", choices=list(NAMED), default="default",
@@ -81,7 +83,8 @@ def _parser() -> argparse.ArgumentParser:
                          help="also write a standalone HTML view (opens in any browser, no server): the labels, "
                               "every level with its attention, the confidence and a legend")
     segment.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
-    segment.add_argument("--smooth-weight", type=_non_negative, default=None, help="graph-cut weight (default: the model's; 0 turns smoothing off)")
+    segment.add_argument("--smooth-weight", type=_non_negative, default=None,
+                         help="graph-cut weight (default: the model's; 0 turns smoothing off)")
     segment.add_argument("--repair", action="store_true",
                          help="merge duplicate vertices, drop degenerate and repeated faces and cut non-manifold edges and "
                               "vertices apart first; labels are written per input face")
@@ -92,17 +95,18 @@ def _parser() -> argparse.ArgumentParser:
     _add_data_options(evaluate)
     evaluate.add_argument("--json", type=Path, help="also write the scores to this JSON file")
 
-    feats = commands.add_parser("features", help="compute per-face features of a mesh", description="Write the (F, D) per-face feature matrix as .npy.")
+    feats = commands.add_parser("features", help="compute per-face features of a mesh",
+                                description="Write the (F, D) per-face feature matrix as .npy.")
     feats.add_argument("mesh", type=Path, help=mesh_help)
     feats.add_argument("-o", "--output", required=True, type=Path, help=".npy file to write")
-    feats.add_argument("--groups", default=",".join(segment_defaults.groups), help="comma-separated feature groups (default: %(default)s)")
+    feats.add_argument("--groups", default=",".join(segment_defaults.groups),
+                       help="comma-separated feature groups (default: %(default)s)")
     feats.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
-    feats.add_argument("--repair", action="store_true", help="repair the mesh first, as `segment --repair` does; rows follow the repaired faces")
+    feats.add_argument("--repair", action="store_true",
+                       help="repair the mesh first, as `segment --repair` does; rows follow the repaired faces")
 
     commands.add_parser("models", help="list the pretrained models shipped with anseg",
                         description="The pretrained models `anseg segment --model NAME` takes, with their model cards' summary.")
-    commands.add_parser("validate", help="compare settings by cross-validation on training meshes", add_help=False,
-                        description="anseg.validate; `anseg validate --help` lists its options.")
     return parser
 
 
@@ -158,7 +162,8 @@ def _segment(args) -> None:
         model, args.mesh = _load_model(resolve(args.model_name)), args.paths[0]
     else:
         if len(args.paths) != 2:
-            raise ValueError("give a model file and a mesh file, or --model NAME and a mesh file (`anseg models` lists the names)")
+            raise ValueError("give a model file and a mesh file, or --model NAME and a mesh file "
+                             "(`anseg models` lists the names)")
         model, args.mesh = _load_model(args.paths[0]), args.paths[1]
     mesh = input_mesh = load_mesh(args.mesh, validate=not args.repair)
     face_map = None
@@ -226,10 +231,6 @@ def main(argv: list[str] | None = None) -> int:
     from anseg.mesh import MeshError
 
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv[:1] == ["validate"]:  # its own parser, shared with python -m anseg.validate
-        from anseg.validate import main as validate
-
-        return validate(argv[1:])
     args = _parser().parse_args(argv)
     handlers = {"train": _train, "segment": _segment, "evaluate": _evaluate, "features": _features, "models": _models}
     try:

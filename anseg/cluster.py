@@ -154,7 +154,8 @@ def sequence(mesh_or_centroids, cluster_labels, curve: str = "hilbert") -> np.nd
     Clusters are placed by the mean rank of their faces along the curve,
     ties by label; faces in the same curve cell keep their index order.
     """
-    centroids = mesh_or_centroids.face_centroids if isinstance(mesh_or_centroids, Mesh) else np.asarray(mesh_or_centroids, dtype=np.float64)
+    centroids = (mesh_or_centroids.face_centroids if isinstance(mesh_or_centroids, Mesh)
+                 else np.asarray(mesh_or_centroids, dtype=np.float64))
     if centroids.ndim != 2 or centroids.shape[1] != 3:
         raise ValueError(f"centroids must have shape (F, 3), got {centroids.shape}")
     if not np.isfinite(centroids).all():

@@ -1,4 +1,4 @@
-"""Edge-collapse downsampling, its exact record, pooling and label upsampling.
+"""Edge-collapse downsampling and its exact record (chains of records, pooling and upsampling: :mod:`anseg.hierarchy`).
 
 The paper's attentive edge collapse (section III-B, Fig. 3): take the alive
 face with the least score, pick its edge-adjacent face with the least score,
@@ -69,7 +69,6 @@ onto the kept vertex's list when two vertices merge.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -785,69 +784,7 @@ def _check_input(mesh: Mesh) -> None:
         raise MeshError(f"face {bad} has an edge shared by more than two faces; downsample needs an edge-manifold mesh")
 
 
-# --------------------------------------------------------------------------- maps, pooling, upsampling
-def compose(records: CollapseRecord | Sequence[CollapseRecord]) -> np.ndarray:
-    """(F_0,) the face of the last level that stands for each face of level 0, through stacked records."""
-    records = _as_list(records)
-    face_map = records[0].fine_to_coarse
-    for record in records[1:]:
-        face_map = record.fine_to_coarse[face_map]
-    return face_map
-
-
-def _as_list(records) -> list[CollapseRecord]:
-    records = [records] if isinstance(records, CollapseRecord) else list(records)
-    if not records:
-        raise ValueError("need at least one CollapseRecord")
-    for i, (finer, coarser) in enumerate(zip(records, records[1:])):
-        if finer.n_coarse_faces != coarser.n_fine_faces:
-            raise ValueError(
-                f"records {i} and {i + 1} do not chain: {finer.n_coarse_faces} coarse faces vs {coarser.n_fine_faces} fine faces"
-            )
-    return records
-
-
-def pool(records: CollapseRecord | Sequence[CollapseRecord], values, weights) -> np.ndarray:
-    """Weighted mean of fine-face ``values`` (F,) or (F, D) over the fine faces each coarse face stands for.
-
-    ``records`` is one record or the records of successive cycles (level 0
-    first); ``weights`` (F,) are usually the level-0 face areas. Returns
-    (F_coarse,) or (F_coarse, D).
-    """
-    from scipy.sparse import csr_matrix
-
-    face_map = compose(records)
-    n_coarse = _as_list(records)[-1].n_coarse_faces
-    values = np.asarray(values, dtype=np.float64)
-    weights = np.asarray(weights, dtype=np.float64)
-    if values.shape[:1] != face_map.shape or values.ndim not in (1, 2):
-        raise ValueError(f"values must have shape ({len(face_map)},) or ({len(face_map)}, D), got {values.shape}")
-    if weights.shape != face_map.shape or not np.isfinite(weights).all() or (weights < 0).any():
-        raise ValueError(f"weights must be {len(face_map)} finite non-negative numbers, got shape {weights.shape}")
-    total = np.bincount(face_map, weights=weights, minlength=n_coarse)
-    if (total <= 0).any():
-        raise ValueError(f"{int((total <= 0).sum())} coarse faces stand only for fine faces of zero weight")
-    spread = csr_matrix((weights / total[face_map], (face_map, np.arange(len(face_map)))), shape=(n_coarse, len(face_map)))
-    return spread @ values
-
-
-def one_hot(labels, n_classes: int) -> np.ndarray:
-    """(F, n_classes) float one-hot rows of integer labels in [0, n_classes)."""
-    labels = np.asarray(labels)
-    if labels.ndim != 1 or not np.issubdtype(labels.dtype, np.integer):
-        raise ValueError(f"labels must be a 1-D integer array, got {labels.dtype} {labels.shape}")
-    if len(labels) and (labels.min() < 0 or labels.max() >= n_classes):
-        raise ValueError(f"labels must lie in [0, {n_classes}), found [{labels.min()}, {labels.max()}]")
-    out = np.zeros((len(labels), n_classes))
-    out[np.arange(len(labels)), labels] = 1.0
-    return out
-
-
-def pool_labels(records: CollapseRecord | Sequence[CollapseRecord], labels, areas, n_classes: int) -> np.ndarray:
-    """(F_coarse,) the area-weighted majority label of the fine faces each coarse face stands for (ties: lowest class)."""
-    return np.argmax(pool(records, one_hot(labels, n_classes), areas), axis=1)
-
-
+# --------------------------------------------------------------------------- carrying values back
 def upsample(record: CollapseRecord, coarse_probs) -> np.ndarray:
     """Carry per-face class probabilities (F_coarse, C) back to the fine faces by replaying the record.
 
@@ -865,27 +802,6 @@ def upsample(record: CollapseRecord, coarse_probs) -> np.ndarray:
     probs[record.coarse_face_ids] = coarse_probs
     _vote_reappearing(probs, record.removed_faces, record.outer_neighbors)
     return probs
-
-
-def upsample_through(records: Sequence[CollapseRecord], coarse_probs) -> np.ndarray:
-    """:func:`upsample` from the last level of ``records`` (level 0 first) back to level 0."""
-    probs = coarse_probs
-    for record in reversed(_as_list(records)):
-        probs = upsample(record, probs)
-    return probs
-
-
-def round_trip_labels(records: Sequence[CollapseRecord], labels, areas, n_classes: int) -> np.ndarray:
-    """(F,) ``labels`` pooled to the last level of ``records`` and carried back by the vote.
-
-    The best any labelling of that coarse level can do once upsampled: the
-    faces it gets wrong are those whose label did not survive the collapses.
-    No records (the input level itself): the labels as they are.
-    """
-    if not len(records):
-        return np.asarray(labels).copy()
-    coarse = pool_labels(records, labels, areas, n_classes)
-    return upsample_through(records, one_hot(coarse, n_classes)).argmax(axis=1)
 
 
 def rings_to_other_label(mesh, labels) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 * ``default``: the project's reading, :class:`SegmentConfig` and
   :class:`TrainConfig` as they are; every default there is chosen by
-  cross-validation on training meshes (:mod:`anseg.validate`): relative
+  cross-validation on training meshes (:mod:`anseg.study.validate`): relative
   local scale, weighted collapse with a density range of 8, the ``hks``
   features, weights averaged over the last 20 epochs, graph-cut weight 2.
 * ``v1``: the defaults before that validation, with which the committed

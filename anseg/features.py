@@ -19,21 +19,21 @@ columns (see :func:`feature_names`):
             ``gc_slog`` = sign(K) log(1 + |K|) and ``gc_rank``, the signed
             rank (positive K ranked among positives into (0, 1], negative
             among negatives into [-1, 0), flat faces 0).
-``sdf``     Shape Diameter Function (Shapira et al. 2008; :mod:`anseg.sdf`):
+``sdf``     Shape Diameter Function (Shapira et al. 2008; :mod:`anseg.geometry.sdf`):
             the cosine-weighted mean length of the rays cast from each face's
             centroid over a cone (120 degrees) around the inward normal.
             Normals are taken outward (flipped when the signed volume is
             negative). ``sdf`` is the absolute value, ``sdf_lognorm``
             Shapira's log-normalisation log(1 + 4 s) / log 5 of the per-mesh
             robust (1st-99th percentile) min-max scaled value s.
-``agd``     Average Geodesic Distance (:mod:`anseg.geodesic`): the
+``agd``     Average Geodesic Distance (:mod:`anseg.geometry.geodesic`): the
             area-weighted mean heat-method distance to the rest of the shape.
             ``agd`` is the absolute value, ``agd_rel`` = (agd - min) /
             (max - min) per mesh: 0 at the geodesic centre, 1 at the farthest
             extremity.
 ``smooth``  (optional, not in :data:`DEFAULT_GROUPS`) ``sdf``, ``gc_slog``
             and ``agd`` diffused over the surface at a few geodesic radii
-            (:mod:`anseg.diffusion`), so a face sees its wide neighbourhood.
+            (:mod:`anseg.geometry.diffusion`), so a face sees its wide neighbourhood.
             Cheap once its inputs exist (about 0.15 s on 25K faces); a per-face
             gradient-boosting probe on PSB split 0 gained 2 to 6 points of
             accuracy with it (Teddy, Airplane, Human, Chair).
@@ -61,7 +61,7 @@ over its training set.
 Nothing here is random: the SDF ray pattern and the AGD sources are fixed
 functions of the geometry, so results are deterministic.
 
-Meshes above :data:`anseg.proxy.LARGE_MESH_FACES` faces (scans, CAD; no benchmark mesh
+Meshes above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces (scans, CAD; no benchmark mesh
 is that large) take faster paths, so that 300K faces cost seconds, not
 minutes: the SDF rays are cast by embree, and the AGD, the HKS and the
 ``smooth`` group's diffusion are computed on one uniform collapse of the
@@ -85,11 +85,21 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from anseg.cache import atomic_write, cache_dir, library_versions, read_checked_array, write_checked_array
-from anseg import diffusion, geodesic, proxy, rays, sdf
+from anseg.cache import (
+    atomic_write,
+    cache_dir,
+    library_versions,
+    read_checked_array,
+    write_checked_array,
+)
+from anseg.geometry import diffusion, geodesic, proxy, rays, sdf
+from anseg.geometry.spectral import (
+    SPECTRUM_PAIRS,
+    SPECTRUM_VERSION,
+    laplacian_eigenpairs,
+)
 from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
-from anseg.spectral import SPECTRUM_PAIRS, SPECTRUM_VERSION, laplacian_eigenpairs
 
 FEATURES_VERSION = 1  # the feature code as a whole; stored keys and model files name it (see :func:`code`)
 
@@ -280,9 +290,9 @@ class _Geometry:
 
     @cached_property
     def proxy(self) -> tuple["_Geometry", np.ndarray]:
-        """The mesh's :func:`anseg.proxy.collapse_to_proxy`, and each input face's face on it.
+        """The mesh's :func:`anseg.geometry.proxy.collapse_to_proxy`, and each input face's face on it.
 
-        For meshes above :data:`anseg.proxy.LARGE_MESH_FACES` faces: the smooth
+        For meshes above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces: the smooth
         global descriptors (``agd``, ``hks``, the ``smooth`` group's diffusion)
         are computed there, whose cost grows faster than the mesh.
         """
@@ -291,12 +301,12 @@ class _Geometry:
 
     @cached_property
     def agd(self) -> np.ndarray:
-        """Per-face AGD; above :data:`anseg.proxy.LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
+        """Per-face AGD; above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
 
         The heat method's factorisation grows faster than the mesh (24 s of a
         330K-face sphere's 57 s of features). AGD is smooth over the surface,
         and the heat method's own error scales with the edge length, so the
-        values of a collapse to :data:`anseg.proxy.PROXY_FACES` faces are as close to
+        values of a collapse to :data:`anseg.geometry.proxy.PROXY_FACES` faces are as close to
         those of the benchmark meshes the models learn from (up to 56K faces)
         as the full mesh's: on PSB Human/6 subdivided to 323K faces, the
         proxy's AGD has a correlation of 0.998 with the full mesh's and a
@@ -311,7 +321,7 @@ class _Geometry:
 
     @cached_property
     def hks(self) -> np.ndarray:
-        """Per-face HKS; above :data:`anseg.proxy.LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
+        """Per-face HKS; above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
 
         The shift-invert eigensolve factorises the Laplacian and its cost
         grows faster than the mesh, while the lowest :data:`HKS_EIGENPAIRS`

@@ -365,7 +365,8 @@ class AttentionSegmenter(nn.Module):
         if layout.n_faces != x.shape[0] or layout.patch_size != self.config.patch_size:
             raise ValueError(f"the layout places {layout.n_faces} faces in patches of {layout.patch_size}; "
                              f"x has {x.shape[0]} faces and the model takes patches of {self.config.patch_size}")
-        if coarse is not None and (self.context_head is None or coarse.shape != (x.shape[0], self.config.coarse_levels * self.config.width)):
+        if coarse is not None and (self.context_head is None
+                                   or coarse.shape != (x.shape[0], self.config.coarse_levels * self.config.width)):
             raise ValueError(f"coarse context must be (faces, {self.config.coarse_levels} x {self.config.width}) "
                              f"for a model with coarse_levels={self.config.coarse_levels}, got {tuple(coarse.shape)}")
         if self.config.spectral_pairs and (spectrum is None or spectrum.basis.shape != (x.shape[0], self.config.spectral_pairs)):
@@ -416,7 +417,8 @@ class AttentionSegmenter(nn.Module):
                        coarse: torch.Tensor | None = None) -> torch.Tensor:
         """``head(cat([embedded, context[patch], coarse]))`` with the context's columns applied per token (T rows, not F)."""
         first, width = head[0], embedded.shape[1]
-        hidden = F.linear(embedded, first.weight[:, :width]) + F.linear(context, first.weight[:, width : 2 * width], first.bias)[patch]
+        hidden = (F.linear(embedded, first.weight[:, :width])
+                  + F.linear(context, first.weight[:, width : 2 * width], first.bias)[patch])
         if coarse is not None:
             hidden = hidden + F.linear(coarse, first.weight[:, 2 * width :])
         return head[1:](hidden)

@@ -11,7 +11,7 @@ comes back as the result, so that one failure does not lose the others).
   but they do not re-import the caller's ``__main__``, so a plain script
   without an ``if __name__ == "__main__":`` guard works as well as a
   notebook.
-* ``"dask"`` (trainings: :func:`anseg.experiments.run_plan`, validation):
+* ``"dask"`` (trainings: :func:`anseg.study.runner.run_plan`, validation):
   Dask distributed, on a ``LocalCluster`` of ``workers`` processes here, or
   on the running cluster whose scheduler address is ``scheduler``, so the
   same plan scales from this machine to a cluster without a changed line.

@@ -21,7 +21,7 @@ Choices this module makes:
   lifted a gradient-boosting baseline most on PSB split 0 (Teddy 94.0 ->
   97.0 %, Airplane 82.1 -> 87.8 %, Human 76.6 -> 80.5 %, benchmarks/features.py
   study), at 0.12 s per 25K faces; ``hks`` was adopted by cross-validation on
-  training meshes (:mod:`anseg.validate`), like every default of
+  training meshes (:mod:`anseg.study.validate`), like every default of
   :class:`SegmentConfig` and :class:`~anseg.train.TrainConfig`.
 * Labels: by default the class probabilities of every level are carried up
   to the original faces and averaged (``combine="all"``). The paper labels
@@ -55,11 +55,13 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 import torch
 
-from anseg import collapse, features, spectral
+from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout, layout
+from anseg.geometry import spectral
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
+from anseg.hierarchy import Hierarchy, Level, pool
 from anseg.mesh import Mesh
 from anseg.model import AttentionSegmenter, ModelConfig, Output, SpectralInput
 
@@ -113,7 +115,8 @@ class SegmentConfig:
         if self.priority not in collapse.PRIORITIES:
             raise ValueError(f"priority must be one of {collapse.PRIORITIES}, got {self.priority!r}")
         if not (self.smooth_weight >= 0 and self.concave_discount >= 0):
-            raise ValueError(f"smooth_weight and concave_discount must be >= 0, got {self.smooth_weight}, {self.concave_discount}")
+            raise ValueError("smooth_weight and concave_discount must be >= 0, "
+                             f"got {self.smooth_weight}, {self.concave_discount}")
         if not self.density_range >= 1.0:
             raise ValueError(f"density_range must be at least 1 (inf: no clip), got {self.density_range}")
         if self.local_scale not in LOCAL_SCALES:
@@ -226,22 +229,11 @@ def _differences(theirs: dict, ours: dict) -> str:
     return ", ".join(f"{k} {theirs.get(k)!r} here {ours.get(k)!r}" for k in keys if theirs.get(k) != ours.get(k))
 
 
-@dataclass
-class Level:
-    """One level of the hierarchy; ``record`` leads from this level to the next."""
-
-    mesh: Mesh
-    groups: dict[str, np.ndarray]
-    layout: PatchLayout
-    attention: np.ndarray | None = None
-    record: collapse.CollapseRecord | None = None
-    logits: torch.Tensor | None = field(default=None, repr=False)  # kept from the pass that computed the attention
-    spectrum: spectral.Spectrum | None = field(default=None, repr=False)  # for a model that reads the eigenbasis
-
-    def feature_matrix(self, level: int, n_levels: int, local_scale: str = "unit_area") -> np.ndarray:
-        """The model's raw input: the feature groups side by side (as :func:`input_groups` reads them), then the level column."""
-        column = np.full((self.mesh.n_faces, 1), level / max(1, n_levels - 1))
-        return np.concatenate([*input_groups(self.groups, local_scale).values(), column], axis=1).astype(np.float32)
+def level_features(level: Level, index: int, n_levels: int, local_scale: str = "unit_area") -> np.ndarray:
+    """The model's raw input on level ``index``: the feature groups side by side (as :func:`input_groups` reads them),
+    then the level column."""
+    column = np.full((level.mesh.n_faces, 1), index / max(1, n_levels - 1))
+    return np.concatenate([*input_groups(level.groups, local_scale).values(), column], axis=1).astype(np.float32)
 
 
 def input_groups(groups: dict[str, np.ndarray], local_scale: str) -> dict[str, np.ndarray]:
@@ -262,7 +254,7 @@ class Segmentation:
     labels: np.ndarray
     probabilities: np.ndarray
     unsmoothed_labels: np.ndarray
-    levels: list[Level] = field(repr=False)
+    levels: Hierarchy = field(repr=False)
 
 
 def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, names) -> dict[str, np.ndarray]:
@@ -271,13 +263,13 @@ def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, n
     out = features.compute_groups(coarse, local) if local else {}
     for g in names:
         if g not in out:
-            out[g] = collapse.pool(record, level.groups[g], level.mesh.face_areas)
+            out[g] = pool(record, level.groups[g], level.mesh.face_areas)
     return {g: out[g] for g in names}
 
 
 def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, device) -> dict:
     """The network's arguments for one level: its standardised features (a tensor on ``device``) and its patch layout."""
-    x = model.standardize(level.feature_matrix(index, n_levels, model.config.local_scale))
+    x = model.standardize(level_features(level, index, n_levels, model.config.local_scale))
     inputs = {"x": torch.as_tensor(x, device=device), "layout": level.layout}
     if model.network.config.spectral_pairs:
         area = level.mesh.face_areas
@@ -301,7 +293,7 @@ def collapse_weights(attention: np.ndarray, density_range: float) -> np.ndarray:
 
 
 def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: dict[str, np.ndarray] | None = None,
-                 device="cpu", progress: bool = False, first_layout: PatchLayout | None = None) -> list[Level]:
+                 device="cpu", progress: bool = False, first_layout: PatchLayout | None = None) -> Hierarchy:
     """Run the N downsampling units; attention comes from ``model`` (no gradients).
 
     ``groups`` are the level-0 features (computed, with the cache, when not
@@ -338,22 +330,12 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
                                                     priority=config.priority)
         current_groups = coarse_groups(level, current, level.record, config.groups)
         if current_spectrum is not None:
-            current_spectrum = spectral.Spectrum(current_spectrum.values, collapse.pool(
+            current_spectrum = spectral.Spectrum(current_spectrum.values, pool(
                 level.record, current_spectrum.basis, level.mesh.face_areas).astype(np.float32))
-    return levels
+    return Hierarchy(levels)
 
 
-def level_labels(levels: list[Level], labels: np.ndarray, n_classes: int) -> list[np.ndarray]:
-    """The labels of every level: each face takes the area majority of the input faces it stands for.
-
-    Level 0 keeps ``labels``; these are the training targets of the coarse levels.
-    """
-    areas = levels[0].mesh.face_areas
-    return [collapse.pool_labels([lv.record for lv in levels[:index]], labels, areas, n_classes) if index else labels
-            for index in range(len(levels))]
-
-
-def fill_attention(model: Segmenter, levels: list[Level], device="cpu") -> list[Level]:
+def fill_attention(model: Segmenter, levels: Hierarchy, device="cpu") -> Hierarchy:
     """Give every level its attention: build_levels computes it only where it drives a collapse.
 
     The coarsest level, and every level of a uniform or random hierarchy, get
@@ -367,18 +349,13 @@ def fill_attention(model: Segmenter, levels: list[Level], device="cpu") -> list[
     return levels
 
 
-def input_to_level(levels: list[Level]) -> list[np.ndarray | None]:
-    """For every coarse level, the face each input face became there (None for the input level)."""
-    return [collapse.compose([lv.record for lv in levels[:index]]) if index else None for index in range(len(levels))]
-
-
 def forward_levels(network: AttentionSegmenter, inputs: list[dict], to_level: list, attention_grad: list[bool],
                    need_attention: bool = False) -> list:
     """The network's Output on every level of one mesh, in level order.
 
     With coarse context (``network.config.coarse_levels``) the coarse levels
     go first and the input level's head reads their context, carried down to
-    its faces by ``to_level`` (:func:`input_to_level`, as tensors).
+    its faces by ``to_level`` (:meth:`Hierarchy.input_to_levels`, as tensors).
     """
     with_context = network.config.coarse_levels > 0
     outputs = [None] * len(inputs)
@@ -391,7 +368,7 @@ def forward_levels(network: AttentionSegmenter, inputs: list[dict], to_level: li
     return outputs
 
 
-def level_output(model: Segmenter, levels: list[Level], index: int, device="cpu") -> Output:
+def level_output(model: Segmenter, levels: Hierarchy, index: int, device="cpu") -> Output:
     """The network's Output on one level, reusing the logits that build_levels kept from its attention pass.
 
     A kept Output carries no attention (the level has it already). Call it in
@@ -403,7 +380,7 @@ def level_output(model: Segmenter, levels: list[Level], index: int, device="cpu"
     return model(**model_inputs(model, level, index, len(levels), device))
 
 
-def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentConfig, device="cpu") -> np.ndarray:
+def class_probabilities(model: Segmenter, levels: Hierarchy, config: SegmentConfig, device="cpu") -> np.ndarray:
     """Class probabilities on the original faces, carried up from the coarsest level (or all levels, or the input level)."""
     model.network.eval()
     wanted = {"coarsest": [len(levels) - 1], "finest": [0]}.get(config.combine, range(len(levels)))
@@ -411,7 +388,7 @@ def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentCo
     with torch.no_grad():
         if model.network.config.coarse_levels:
             inputs = [model_inputs(model, level, index, len(levels), device) for index, level in enumerate(levels)]
-            maps = [torch.as_tensor(m, device=device) if m is not None else None for m in input_to_level(levels)]
+            maps = [torch.as_tensor(m, device=device) if m is not None else None for m in levels.input_to_levels()]
             outputs = dict(enumerate(forward_levels(model.network, inputs, maps, [False] * len(levels), need_attention=True)))
         else:  # only the levels whose labels count, reusing the pass that computed their attention
             outputs = {index: level_output(model, levels, index, device) for index in wanted}
@@ -421,8 +398,7 @@ def class_probabilities(model: Segmenter, levels: list[Level], config: SegmentCo
         for index in wanted:
             out = outputs[index]
             probs = torch.softmax(out.logits, dim=1).cpu().numpy().astype(np.float64)
-            records = [lv.record for lv in levels[:index]]
-            per_level.append(collapse.upsample_through(records, probs) if records else probs)
+            per_level.append(levels.upsample(index, probs))
             weights.append(0.5 ** index if config.combine == "decay" else 1.0)
     return np.average(per_level, axis=0, weights=weights)
 

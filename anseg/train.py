@@ -50,17 +50,15 @@ import torch.nn.functional as F
 from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout
+from anseg.geometry.spectral import SPECTRUM_PAIRS
 from anseg.metrics import accuracy, pooled_accuracy
 from anseg.model import AttentionSegmenter, ModelConfig
-from anseg.spectral import SPECTRUM_PAIRS
 from anseg.pipeline import (
     SegmentConfig,
     Segmenter,
     build_levels,
     forward_levels,
     input_groups,
-    input_to_level,
-    level_labels,
     model_inputs,
     segment,
 )
@@ -171,9 +169,9 @@ class _Example:
 def _examples(model: Segmenter, mesh, labels, groups, train: TrainConfig, device, first_layout=None) -> _Example:
     levels = build_levels(mesh, model, model.config, groups, device, first_layout=first_layout)
     supervise = model.config.mode == "nonuniform" and train.attention_weight > 0
-    maps = [torch.as_tensor(m, device=device) if m is not None else None for m in input_to_level(levels)]
+    maps = [torch.as_tensor(m, device=device) if m is not None else None for m in levels.input_to_levels()]
     example = _Example([], [], [], [], maps, levels[0].layout)
-    for index, (level, target) in enumerate(zip(levels, level_labels(levels, labels, model.n_classes))):
+    for index, (level, target) in enumerate(zip(levels, levels.labels_on_every_level(labels, model.n_classes))):
         area = level.mesh.face_areas
         example.inputs.append(model_inputs(model, level, index, len(levels), device))
         example.targets.append(torch.as_tensor(target, device=device))

@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg import collapse
 from anseg.cache import atomic_write
 from anseg.mesh import Mesh
 from anseg.viz import _pyvista, palette, polydata
@@ -39,12 +38,10 @@ def panels(result, n_classes: int) -> list[tuple[int, int, Mesh, np.ndarray]]:
     import matplotlib
 
     levels = result.levels
-    areas = levels[0].mesh.face_areas
-    records = [lv.record for lv in levels[:-1]]
     colours = palette(n_classes)
     out = []
     for index, level in enumerate(levels):
-        labels = collapse.pool_labels(records[:index], result.labels, areas, n_classes) if index else result.labels
+        labels = levels.labels_on(index, result.labels, n_classes)
         out.append((0, index, level.mesh, colours[labels]))
         if level.attention is not None:
             log = np.log(np.maximum(level.attention, 1e-6))

@@ -10,7 +10,8 @@ back through all levels (``upsample_through``).
 
 Peak memory: each method runs once more in a fresh child process that first
 does a warm-up on a small mesh (imports and JIT land in the baseline),
-returns freed heap to the OS (glibc ``malloc_trim``), then resets the kernel's resident-set high-water mark (``5 > /proc/self/clear_refs``,
+returns freed heap to the OS (glibc ``malloc_trim``), then resets the kernel's
+resident-set high-water mark (``5 > /proc/self/clear_refs``,
 Linux) and runs once; the figure is the high-water mark (``VmHWM``) minus the
 resident set before the call (``VmRSS``): what the call itself adds, native
 (numba, C++) allocations included.
@@ -31,7 +32,8 @@ import time
 
 import numpy as np
 
-from anseg.collapse import downsample, upsample_through
+from anseg.collapse import downsample
+from anseg.hierarchy import upsample_through
 from anseg.mesh import Mesh, load_mesh
 
 METHODS = ("nonuniform", "uniform", "igl")

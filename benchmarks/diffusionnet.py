@@ -12,7 +12,7 @@ rotations, 128 eigenpairs, 4 blocks of width 128 with dropout, outputs
 averaged to the faces, Adam at lr 1e-3 halved every 50 epochs, 200 epochs,
 one mesh per step, the last model scored.
 
-The "DiffusionNet (hks)" reference values in ``anseg/reference.py``
+The "DiffusionNet (hks)" reference values in ``anseg/study/reference.py``
 (``MEASURED_ON_OUR_DATA``) were measured this way, one run per category on an
 H100; they are printed beside each result. One run each: a rerun with
 another seed or device is not expected to match them to the last digit. On a
@@ -43,7 +43,7 @@ import numpy as np
 
 from anseg import datasets
 from anseg.metrics import pooled_accuracy
-from anseg.reference import measured_on_our_data
+from anseg.study.reference import measured_on_our_data
 
 # The authors' settings for segmentation (human_segmentation_original.py).
 K_EIG = 128
@@ -77,7 +77,8 @@ class Prepared:
         _frames, mass, L, evals, evecs, grad_x, grad_y = dn.geometry.get_operators(
             verts, faces, k_eig=K_EIG, op_cache_dir=args.op_cache)
         self.verts, self.faces, self.mass, self.L = verts.to(device), faces.to(device), mass.to(device), L.to(device)
-        self.evals, self.evecs, self.grad_x, self.grad_y = evals.to(device), evecs.to(device), grad_x.to(device), grad_y.to(device)
+        self.evals, self.evecs, self.grad_x, self.grad_y = (evals.to(device), evecs.to(device),
+                                                            grad_x.to(device), grad_y.to(device))
         # the HKS depends on the mesh alone: computed once, not at every step as the authors' loop does
         self.hks = dn.geometry.compute_hks_autoscale(self.evals, self.evecs, N_HKS) if args.input == "hks" else None
         self.labels = torch.tensor(item.labels, device=device)
@@ -100,7 +101,8 @@ def run_category(dn, category: str, args, device) -> dict:
     torch.manual_seed(args.seed)
     rotation = np.random.RandomState(args.seed)
     start = time.perf_counter()
-    train = [Prepared(dn, item, args, device) for item in datasets.load("psb", category=category, split="train", split_index=args.split, progress=False)]
+    train = [Prepared(dn, item, args, device)
+             for item in datasets.load("psb", category=category, split="train", split_index=args.split, progress=False)]
     test_items = datasets.load("psb", category=category, split="test", split_index=args.split, progress=False)
     test = [Prepared(dn, item, args, device) for item in test_items]
     operator_s = time.perf_counter() - start
@@ -114,7 +116,8 @@ def run_category(dn, category: str, args, device) -> dict:
     model.train()
     for _ in tqdm(range(args.epochs), desc=f"DiffusionNet {category}", unit="epoch"):
         for i in torch.randperm(len(train)).tolist():
-            loss = torch.nn.functional.nll_loss(train[i].forward(dn, model, rotation if args.input == "xyz" else None), train[i].labels)
+            loss = torch.nn.functional.nll_loss(train[i].forward(dn, model, rotation if args.input == "xyz" else None),
+                                                train[i].labels)
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -168,7 +171,7 @@ def main(argv=None) -> None:
     reference_mean = None if None in references else float(np.mean(references))
     print(f"{'mean':10s} unit area {mean:6.2f}" + ("" if reference_mean is None else f"  reference {reference_mean:6.2f}"))
     if args.json:
-        from anseg.experiments import code_revision, environment
+        from anseg.study.store import code_revision, environment
 
         authors = code_revision(args.diffusion_net)["code_revision"]  # the clone's commit: which DiffusionNet ran
         args.json.write_text(json.dumps({"settings": vars(args), "categories": rows, "mean": mean,

@@ -167,7 +167,8 @@ def studies(path: Path) -> None:
         sdf = features.compute_groups(mesh, ["sdf"], sdf_rays=n)["sdf"][:, 0]
         seconds = time.perf_counter() - start
         rel = np.abs(sdf - reference) / reference
-        print(f"{n:>8} {seconds:>8.3f} {np.median(rel):>15.4f} {np.percentile(rel, 90):>12.4f} {np.corrcoef(sdf, reference)[0, 1]:>12.4f}")
+        print(f"{n:>8} {seconds:>8.3f} {np.median(rel):>15.4f} {np.percentile(rel, 90):>12.4f} "
+              f"{np.corrcoef(sdf, reference)[0, 1]:>12.4f}")
 
 
 def main() -> None:

@@ -3,7 +3,7 @@
     python benchmarks/levels.py results/validation/runs/<key>.json [...] [--with priority=weighted] [--out levels.csv]
                                 [--render hierarchy.png]
 
-Each argument is a stored validation cell (:mod:`anseg.validate`): its model
+Each argument is a stored validation cell (:mod:`anseg.study.validate`): its model
 (``results/validation/models/<training_key>.pt``) is run on the cell's
 held-out TRAINING meshes, once in the model's own mode, once with the
 uniform collapse and once per ``--with`` (SegmentConfig overrides of the
@@ -43,11 +43,11 @@ import torch
 from sklearn.metrics import roc_auc_score
 
 from anseg import datasets
-from anseg.collapse import CollapseWarning, compose, rings_to_other_label
+from anseg.collapse import CollapseWarning, rings_to_other_label
 from anseg.configs import parse_overrides
 from anseg.metrics import accuracy
-from anseg.pipeline import Segmenter, build_levels, level_labels, level_output
-from anseg.comparison import csv_text
+from anseg.pipeline import Segmenter, build_levels, level_features, level_output
+from anseg.study.comparison import csv_text
 
 GIANT_FACTOR = 8
 BAND_RINGS = 2
@@ -58,9 +58,8 @@ def hierarchy(item, model: Segmenter, config) -> tuple[list, list[np.ndarray]]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CollapseWarning)
         levels = build_levels(item.mesh, model, config)
-    records = [level.record for level in levels[:-1]]
-    stands_for = [np.bincount(compose(records[:i]), minlength=level.mesh.n_faces) if i else np.ones(level.mesh.n_faces, int)
-                  for i, level in enumerate(levels)]
+    stands_for = [np.bincount(levels.input_to_level(i), minlength=level.mesh.n_faces) if i
+                  else np.ones(level.mesh.n_faces, int) for i, level in enumerate(levels)]
     return levels, stands_for
 
 
@@ -69,8 +68,9 @@ def level_statistics(item, model: Segmenter, config) -> list[dict]:
     levels, counts = hierarchy(item, model, config)
     model.network.eval()
     rows = []
-    for index, (level, stands_for, target) in enumerate(zip(levels, counts, level_labels(levels, item.labels, model.n_classes))):
-        raw = level.feature_matrix(index, len(levels), config.local_scale)
+    for index, (level, stands_for, target) in enumerate(zip(levels, counts,
+                                                            levels.labels_on_every_level(item.labels, model.n_classes))):
+        raw = level_features(level, index, len(levels), config.local_scale)
         largest = np.abs(model.standardize(raw)).max(axis=1)
         with torch.no_grad():
             logits = level_output(model, levels, index).logits
@@ -141,7 +141,8 @@ def main(argv=None) -> None:
     print(f"{'arm':<16} {'category':<10} {'hierarchy':<18} lvl  faces    z99     zmax   giant  share  own   auc  vs uniform")
     for r in table:
         print(f"{r['arm']:<16} {r['category']:<10} {r['hierarchy']:<18} {r['level']:>3} {r['faces']:6.0f} {r['z99']:7.1f} "
-              f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['own']:5.3f} {r['auc']:5.2f} {r['giant_vs_uniform']:6.2f}")
+              f"{r['zmax']:8.1f} {r['giant']:6.0f} {r['giant_share']:6.3f} {r['own']:5.3f} "
+              f"{r['auc']:5.2f} {r['giant_vs_uniform']:6.2f}")
     if args.out:
         args.out.write_text(csv_text(table))
 

@@ -39,8 +39,8 @@ import warnings
 import numpy as np
 
 from anseg import datasets
-from anseg.collapse import (COLLAPSE_MODES, CollapseWarning, compose, downsample, pool_labels, rings_to_other_label,
-                            round_trip_labels)
+from anseg.collapse import COLLAPSE_MODES, CollapseWarning, downsample, rings_to_other_label
+from anseg.hierarchy import pool_labels, round_trip_labels
 from anseg.metrics import pooled_accuracy
 
 
@@ -69,15 +69,17 @@ def round_trip(item, mode: str, cycles: int, ratio: float, seed: int) -> tuple[n
 
 
 def learned_round_trip(item, model, config) -> tuple[np.ndarray, int]:
-    """Fine labels after the trip through the levels the model's attention builds under ``config``, and the largest coarse face."""
+    """Fine labels after the trip through the levels the model's attention builds under ``config``,
+    and the largest coarse face."""
     from anseg.pipeline import build_levels
 
     n_classes = len(item.label_names)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CollapseWarning)
         levels = build_levels(item.mesh, model, config)
-    records = [level.record for level in levels[:-1]]
-    return round_trip_labels(records, item.labels, item.mesh.face_areas, n_classes), int(np.bincount(compose(records)).max())
+    coarsest = len(levels) - 1
+    return (levels.round_trip(coarsest, item.labels, n_classes),
+            int(np.bincount(levels.input_to_level(coarsest)).max()) if coarsest else 1)
 
 
 def learned_study(model_path: str, categories, variants: list[str]) -> None:

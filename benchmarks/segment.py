@@ -50,7 +50,8 @@ def pick_mesh(path: str | None, subdivide: int, near: int = 25_000):
         mesh, name = load_mesh(path), path
     else:
         try:
-            items = [m for c in ("Teddy", "Human", "Airplane") for m in datasets.load("psb", category=c, split="test", progress=False)]
+            items = [m for c in ("Teddy", "Human", "Airplane")
+                     for m in datasets.load("psb", category=c, split="test", progress=False)]
             item = min(items, key=lambda m: abs(m.mesh.n_faces - near))
             mesh, name = item.mesh, f"PSB {item.name}"
         except datasets.DatasetError:
@@ -75,13 +76,14 @@ def quick_model(name: str, overrides: str = ""):
 
 def segment_stages() -> dict:
     """Stage name: the package function behind it, as (owner, attribute)."""
+    import anseg.hierarchy as hierarchy
     import anseg.pipeline as pipeline
 
     return {
         "cluster + sequence": (pipeline, "layout"),
         "collapse": (pipeline.collapse, "downsample"),
         "coarse features": (pipeline, "coarse_groups"),
-        "upsample": (pipeline.collapse, "upsample_through"),
+        "upsample": (hierarchy, "upsample_through"),
         "graph cut": (pipeline, "graph_cut"),
         "network": (pipeline.Segmenter, "__call__"),
         "spectrum": (pipeline.spectral, "face_spectrum"),
@@ -143,7 +145,8 @@ def main(argv=None) -> None:
     if args.child:
         measure(args)
         return
-    own = [f"--subdivide={args.subdivide}", f"--near={args.near}", f"--repeat={args.repeat}", f"--threads={args.threads}", f"--config={args.config}",
+    own = [f"--subdivide={args.subdivide}", f"--near={args.near}", f"--repeat={args.repeat}", f"--threads={args.threads}",
+           f"--config={args.config}",
            *([f"--mesh={args.mesh}"] if args.mesh else []), *([f"--model={args.model}"] if args.model else [])]
     reference_set = args.set if args.reference_set is None else args.reference_set
 

@@ -1,4 +1,5 @@
-"""What the benchmarks share: stage timers that wrap the package functions, a reference revision's checkout, and this core's arithmetic peak."""
+"""What the benchmarks share: stage timers that wrap the package functions, a reference revision's checkout,
+and this core's arithmetic peak."""
 
 from __future__ import annotations
 

@@ -5,7 +5,7 @@
                                [--reference REV] [--reference-set OVERRIDES] [--pairs N]
 
 Trains on the split's training meshes and evaluates on its test meshes, as
-``anseg.experiments.train_and_evaluate`` does (nothing is stored; the test
+``anseg.study.runner.train_and_evaluate`` does (nothing is stored; the test
 accuracy is printed only to show whether two codes give the same result).
 Stages: level-0 features (read from the cache when there), rebuilding the
 hierarchy from the current attention (every ``recollapse_every`` epochs),
@@ -51,7 +51,8 @@ def measure(args, code: str | None, overrides: str) -> tuple[dict, float, str]:
     category = None if args.category in ("", "none") else args.category
     load = dict(category=category, split_index=args.split, progress=False)
     train_set, test_set = datasets.load(args.dataset, split="train", **load), datasets.load(args.dataset, split="test", **load)
-    config, settings = configuration("default", f"mode={args.mode},train.epochs={args.epochs},train.device={args.device},{overrides}")
+    config, settings = configuration("default",
+                                     f"mode={args.mode},train.epochs={args.epochs},train.device={args.device},{overrides}")
     totals = defaultdict(float)
     stages = {"features (level 0)": (train, "level_zero_features"), "rebuild hierarchy": (train, "_examples")}
     start = time.perf_counter()

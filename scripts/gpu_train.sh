@@ -11,12 +11,12 @@ wheels=$1; packed=$2; out=$3; stop=$4; hard=$5; shift 5
 source "$(dirname "$0")"/gpu_setup.sh "$wheels" "$packed"
 left=$(( hard - ($(date +%s) - t0) ))
 # killed hard at the limit, so that what is stored still gets packed below
-(timeout -s KILL $left python3 -m anseg.reproduce --data real --train-only --backend loky --workers "$(nproc)" \
+(timeout -s KILL $left python3 -m anseg.study.reproduce --data real --train-only --backend loky --workers "$(nproc)" \
     --stop-after "$stop" \
     --only "$@" 2>&1 | tr '\r' '\n' | grep "^\[anseg\]\|Error" > "$out"/log.txt)
 pkill -9 -f "loky|multiprocessing"; sleep 1
 models=$(python3 -c "
-from anseg.experiments import planned_experiments
+from anseg.study.plan import planned_experiments
 for e, x in planned_experiments('real', ['fig4', 'explore', 'fig12']):
     if e.dataset != 'psb' or e.category in ('Human', 'Teddy'):
         print(f'models/{e.key(x)}.pt')" | while read -r m; do [ -f "$m" ] && echo "$m"; done)

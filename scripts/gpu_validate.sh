@@ -1,5 +1,5 @@
 #!/bin/bash
-# Run a validation study (anseg validate) on a GPU machine, every cell of it side by side, one process per core.
+# Run a validation study (python -m anseg.study.validate) on a GPU machine, every cell of it side by side, one process per core.
 #
 #   bash scripts/gpu_validate.sh WHEELS_DIR PACKED_PSB OUT_DIR HARD_LIMIT_S VALIDATE_ARGUMENTS...
 #
@@ -11,7 +11,7 @@
 wheels=$1; packed=$2; out=$3; hard=$4; shift 4
 source "$(dirname "$0")"/gpu_setup.sh "$wheels" "$packed"
 left=$(( hard - ($(date +%s) - t0) ))
-(timeout -s KILL $left python3 -m anseg.validate --backend loky --workers "$(nproc)" --quiet "$@" \
+(timeout -s KILL $left python3 -m anseg.study.validate --backend loky --workers "$(nproc)" --quiet "$@" \
     > "$out"/log.txt 2>&1)
 pkill -9 -f "loky|multiprocessing"; sleep 1
 tar czf "$out"/validation.tgz --exclude=results/validation/models results/validation

@@ -28,8 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from anseg import datasets, pretrained
-from anseg.experiments import REPO, ResultStore, notebook_parameters, notebook_runs, planned_experiment
 from anseg.pipeline import Segmenter, feature_code, segment
+from anseg.study.plan import notebook_parameters, notebook_runs, planned_experiment
+from anseg.study.store import REPO, ResultStore
 
 # which notebook runs become which shipped names
 # (Table I's split 0 also holds the plain reading's runs: those are not the configuration shipped)

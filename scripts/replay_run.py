@@ -33,7 +33,8 @@ REPO = Path(__file__).resolve().parent.parent
 RETRAIN = """
 import json, sys
 import torch
-from anseg.experiments import Experiment, train_and_evaluate
+from anseg.study.runner import train_and_evaluate
+from anseg.study.store import Experiment
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig
 run = json.load(sys.stdin)

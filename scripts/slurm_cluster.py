@@ -6,8 +6,8 @@
 It submits the worker jobs, prints the scheduler's address and keeps the
 scheduler alive until interrupted; in another shell, on the login node:
 
-    python -m anseg.reproduce --data real --train-only --scheduler tcp://HOST:PORT
-    anseg validate --study width --arm default --arm wide:train.width=128 --scheduler tcp://HOST:PORT
+    python -m anseg.study.reproduce --data real --train-only --scheduler tcp://HOST:PORT
+    python -m anseg.study.validate --study width --arm default --arm wide:train.width=128 --scheduler tcp://HOST:PORT
 
 With ``--gpu`` each job asks for a GPU and its worker declares the ``GPU``
 resource, which the runs whose device is ``cuda`` wait for. Needs

@@ -7,10 +7,10 @@ import stat
 
 import numpy as np
 import pytest
+from conftest import grid_mesh
 
 from anseg.cache import atomic_write
 from anseg.mesh import save_mesh
-from conftest import grid_mesh
 
 WRITERS = {
     "labels.txt": lambda tmp: np.savetxt(tmp, np.arange(4), fmt="%d"),

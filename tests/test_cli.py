@@ -7,17 +7,17 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import grid_mesh
 
 from anseg.cli import main
 from anseg.mesh import save_mesh
-from conftest import grid_mesh
 
 
 def run_cli(*args, cwd=None):
     return subprocess.run([sys.executable, "-m", "anseg.cli", *map(str, args)], capture_output=True, text=True, cwd=cwd)
 
 
-@pytest.mark.parametrize("command", [[], ["train"], ["segment"], ["evaluate"], ["features"], ["validate"]])
+@pytest.mark.parametrize("command", [[], ["train"], ["segment"], ["evaluate"], ["features"]])
 def test_help_everywhere(command, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main([*command, "--help"])
@@ -108,7 +108,8 @@ def test_unknown_dataset_and_missing_model(tmp_path):
 @pytest.mark.slow
 def test_train_segment_evaluate(tmp_path, monkeypatch):
     model = tmp_path / "vessel.pt"
-    result = run_cli("train", "--dataset", "synthetic", "--category", "vessel", "--epochs", "1", "--cycles", "1", "-o", model, cwd=tmp_path)
+    result = run_cli("train", "--dataset", "synthetic", "--category", "vessel",
+                     "--epochs", "1", "--cycles", "1", "-o", model, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert model.is_file() and not model.with_suffix(".ckpt").exists()
     from anseg import datasets
@@ -137,7 +138,10 @@ def test_train_segment_evaluate(tmp_path, monkeypatch):
     assert result.returncode == 0, result.stderr
     labels = np.loadtxt(tmp_path / "fin.txt", dtype=int)
     assert labels.shape == (glued.n_faces,) and labels.min() >= 0
-    from test_mesh import grid_with_a_fin, two_cones_touching_at_their_apex  # an edge of 4 faces; cones at their apex
+    from test_mesh import (  # an edge of 4 faces; cones at their apex
+        grid_with_a_fin,
+        two_cones_touching_at_their_apex,
+    )
 
     for name, broken in (("fins", grid_with_a_fin(2)), ("cones", two_cones_touching_at_their_apex())):
         save_mesh(tmp_path / f"{name}.off", broken)

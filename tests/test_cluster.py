@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from conftest import grid_mesh
 
 from anseg.cluster import cluster_faces, curve_keys, layout, patches, sequence
 from anseg.mesh import Mesh
-from conftest import grid_mesh
 
 
 def blobs(n_per_blob: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -105,7 +105,8 @@ def test_fewer_faces_or_distinct_rows_than_k():
 
 @pytest.mark.parametrize(
     "features, k, message",
-    [(np.zeros(5), 2, "shape"), (np.zeros((0, 3)), 2, "shape"), (np.full((5, 2), np.nan), 2, "NaN"), (np.zeros((5, 2)), 0, "k must")],
+    [(np.zeros(5), 2, "shape"), (np.zeros((0, 3)), 2, "shape"),
+     (np.full((5, 2), np.nan), 2, "NaN"), (np.zeros((5, 2)), 0, "k must")],
 )
 def test_cluster_faces_rejects_bad_input(features, k, message):
     with pytest.raises(ValueError, match=message):

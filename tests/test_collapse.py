@@ -7,29 +7,18 @@ import warnings
 import numpy as np
 import pytest
 import trimesh
+from conftest import grid_mesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from anseg.collapse import (
-    COLLAPSE_MODES,
-    PRIORITIES,
-    CollapseWarning,
-    compose,
-    downsample,
-    one_hot,
-    pool,
-    pool_labels,
-    rings_to_other_label,
-    round_trip_labels,
-    upsample,
-    upsample_through,
-)
+from anseg.collapse import COLLAPSE_MODES, PRIORITIES, CollapseWarning, downsample, rings_to_other_label, upsample
+from anseg.hierarchy import compose, one_hot, pool, pool_labels, round_trip_labels, upsample_through
 from anseg.mesh import Mesh, MeshError
-from conftest import grid_mesh
 
-TETRA = Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float), np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
+TETRA = Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float),
+             np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
 
 
 # ----------------------------------------------------------------------------- mesh makers
@@ -50,7 +39,8 @@ def bumpy_sphere(subdivisions, rng):
 
 
 def bumpy_torus(rng):
-    torus = trimesh.creation.torus(major_radius=1.0, minor_radius=0.35, major_sections=int(rng.integers(12, 24)), minor_sections=8)
+    torus = trimesh.creation.torus(major_radius=1.0, minor_radius=0.35,
+                                   major_sections=int(rng.integers(12, 24)), minor_sections=8)
     return Mesh(torus.vertices + 0.02 * rng.random(torus.vertices.shape), torus.faces)
 
 

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import grid_mesh
 
 from anseg import datasets
 from anseg.datasets import DatasetError, archive, coseg, meshcnn, psb
-from conftest import grid_mesh
 
 TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
 TETRA_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
@@ -155,7 +155,8 @@ def test_psb_split_follows_the_shuffle_rule_of_its_protocol():
 def test_psb_reader_shares_label_names_across_a_category(tmp_path):
     ids = sorted(datasets.psb_split("Teddy", 0)["train"] + datasets.psb_split("Teddy", 0)["test"])
     odd_one = ids[3]
-    psb_folder(tmp_path, "Teddy", ids, lambda m: ["torso", "torso", "ear", "head"] if m == odd_one else ["torso", "leg", "leg", "torso"])
+    psb_folder(tmp_path, "Teddy", ids,
+               lambda m: ["torso", "torso", "ear", "head"] if m == odd_one else ["torso", "leg", "leg", "torso"])
     train = datasets.load("psb", "Teddy", "train", root=tmp_path, progress=False)
     test = datasets.load("psb", "Teddy", "test", split_index=0, root=tmp_path, progress=False)
     assert [m.name for m in train] == [f"Teddy/{i}" for i in datasets.psb_split("Teddy", 0)["train"]]

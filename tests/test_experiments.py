@@ -10,8 +10,9 @@ import time
 import pytest
 import torch
 
-from anseg.experiments import Experiment, ResultStore, run_plan
 from anseg.pipeline import SegmentConfig
+from anseg.study.runner import run_plan
+from anseg.study.store import Experiment, ResultStore
 from anseg.train import TrainConfig
 
 OPTIONS = {"n_shapes": 4}
@@ -92,7 +93,7 @@ def test_the_slurm_job_script_starts_one_thread_workers_with_the_gpu_resource():
     import sys
 
     pytest.importorskip("dask_jobqueue", reason="dask-jobqueue is the dev extra's; pip install dask-jobqueue")
-    from anseg.experiments import REPO
+    from anseg.study.store import REPO
 
     run = subprocess.run([sys.executable, str(REPO / "scripts" / "slurm_cluster.py"), "--print-job-script", "--gpu"],
                          capture_output=True, text=True, timeout=120)
@@ -105,7 +106,7 @@ def test_the_slurm_job_script_starts_one_thread_workers_with_the_gpu_resource():
 def test_every_record_names_the_code_revision_and_whether_its_code_was_clean(tmp_path):
     import subprocess
 
-    from anseg.experiments import REPO, code_revision, environment
+    from anseg.study.store import REPO, code_revision, environment
 
     record = environment()
     assert {"code_revision", "code_clean"} <= record.keys()

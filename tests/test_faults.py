@@ -1,4 +1,5 @@
-"""What must survive a crash: a training run killed mid-epoch resumes to the same model and keeps its seconds; concurrent cache writers."""
+"""What must survive a crash: a training run killed mid-epoch resumes to the same model and keeps its seconds;
+concurrent cache writers."""
 
 from __future__ import annotations
 

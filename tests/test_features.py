@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from conftest import grid_mesh
 from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
 
-from anseg import cache, collapse, diffusion, features, geodesic, proxy
+from anseg import cache, collapse, features
+from anseg.geometry import diffusion, geodesic, proxy
 from anseg.mesh import Mesh, MeshError
-from conftest import grid_mesh
 
 FAST = {"sdf_rays": 8, "agd_sources": 16}  # cheaper than the defaults, same code paths
 

@@ -1,4 +1,4 @@
-"""anseg.geodesic: the farthest-point sources and their areas (the AGD on shapes: test_features)."""
+"""anseg.geometry.geodesic: the farthest-point sources and their areas (the AGD on shapes: test_features)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from anseg import geodesic
+from anseg.geometry import geodesic
 
 
 @settings(max_examples=40, deadline=None)

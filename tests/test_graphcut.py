@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from anseg.mesh import Mesh
-from anseg.graphcut import energy, smooth
 from conftest import grid_mesh
+
+from anseg.graphcut import energy, smooth
+from anseg.mesh import Mesh
 
 
 def two_class_probs(class_one: np.ndarray, confidence: float) -> np.ndarray:

@@ -28,10 +28,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from conftest import (
+    OFFLINE,
+    off_machine,
+    offline_python,
+    page_requests,
+    screenshot_folder,
+)
 
 from anseg import datasets
 from anseg.mesh import save_mesh
-from conftest import OFFLINE, off_machine, offline_python, page_requests, screenshot_folder
 from anseg.pipeline import SegmentConfig, Segmenter, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette

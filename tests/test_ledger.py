@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from anseg import ledger
+from anseg.study import ledger
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import grid_mesh
 
 from anseg.mesh import Mesh, MeshError, load_mesh, repair, save_mesh
-from conftest import grid_mesh
 
 TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
 TETRA_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
@@ -253,7 +253,8 @@ def two_spheres_sharing_a_vertex() -> Mesh:
     a, b = np.argmax(sphere.vertices[:, 0]), np.argmin(sphere.vertices[:, 0])  # a of the left touches b of the right
     right = sphere.faces + n
     right[right == n + b] = a  # one shared vertex index
-    return Mesh(np.vstack([sphere.vertices, sphere.vertices + [2.0 * sphere.vertices[a, 0], 0, 0]]), np.vstack([sphere.faces, right]))
+    return Mesh(np.vstack([sphere.vertices, sphere.vertices + [2.0 * sphere.vertices[a, 0], 0, 0]]),
+                np.vstack([sphere.faces, right]))
 
 
 def two_cones_touching_at_their_apex() -> Mesh:

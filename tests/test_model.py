@@ -11,7 +11,6 @@ import torch
 from torch import nn
 
 from anseg.cluster import PatchLayout, patches
-
 from anseg.model import (
     AttentionSegmenter,
     ModelConfig,

@@ -1,4 +1,4 @@
-"""anseg.notebook: the one call that sets a notebook up, its planned runs and its run record."""
+"""anseg.study.notebook: the one call that sets a notebook up, its planned runs and its run record."""
 
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import json
 
 import pytest
 
-from anseg.experiments import COMMON, PER_NOTEBOOK, notebook_runs
-from anseg.notebook import NotebookRun, percent, start
+from anseg.study.notebook import NotebookRun, percent, start
+from anseg.study.plan import COMMON, PLANS, notebook_runs
 
 
 def smoke_parameters(name: str, out) -> dict:
-    return {**COMMON["smoke"], **PER_NOTEBOOK[f"{name}.ipynb"]["smoke"], "output_dir": str(out)}
+    return {**COMMON["smoke"], **PLANS[f"{name}.ipynb"].parameters["smoke"], "output_dir": str(out)}
 
 
 def test_start_reads_the_parameter_cell_and_records_the_run(tmp_path, capsys):
@@ -65,7 +65,7 @@ def test_the_record_names_the_data_read_outside_the_plan_and_the_model(tmp_path,
 def test_real_categories_none_means_every_psb_category(tmp_path):
     from anseg import datasets
 
-    parameters = {**COMMON["real"], **PER_NOTEBOOK["table1_psb.ipynb"]["real"], "output_dir": str(tmp_path)}
+    parameters = {**COMMON["real"], **PLANS["table1_psb.ipynb"].parameters["real"], "output_dir": str(tmp_path)}
     runs = notebook_runs("table1_psb.ipynb", parameters)
     # every category on every split, then the paper's method as written on the first split
     assert len(runs) == len(datasets.PSB_CATEGORIES) * (len(parameters["splits"]) + 1)
@@ -78,7 +78,7 @@ def test_percent():
 
 
 def test_the_record_column_reads_the_first_studys_stored_run_and_never_repeats_ours(tmp_path):
-    from anseg.experiments import RECORD_CONFIGURATION, planned_experiment
+    from anseg.study.plan import RECORD_CONFIGURATION, planned_experiment
 
     nb = start("table3_human", smoke_parameters("table3_human", tmp_path))
     (run,) = nb.planned

@@ -12,9 +12,16 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from anseg.experiments import COMMON, PER_NOTEBOOK, REPO, planned_experiments
-from anseg.headline import HEADLINE_END, HEADLINE_START, LEDGER_END, LEDGER_START, headline
-from anseg.reproduce import NOTEBOOKS
+from anseg.study.headline import (
+    HEADLINE_END,
+    HEADLINE_START,
+    LEDGER_END,
+    LEDGER_START,
+    headline,
+)
+from anseg.study.plan import COMMON, PLANS, planned_experiments
+from anseg.study.reproduce import NOTEBOOKS
+from anseg.study.store import REPO
 
 SMOKE_TIMEOUT_S = 1800  # about 4 minutes on a 2-core CPU; the margin is for a loaded machine
 
@@ -26,25 +33,26 @@ def _parameter_names(notebook) -> set[str]:
     return {target.id for node in tree.body if isinstance(node, ast.Assign) for target in node.targets}
 
 
-@pytest.mark.parametrize("name", sorted(PER_NOTEBOOK))
+@pytest.mark.parametrize("name", sorted(PLANS))
 def test_notebook_takes_exactly_the_parameters_reproduce_passes(name):
     notebook = nbformat.read(NOTEBOOKS / name, as_version=4)
     names = _parameter_names(notebook)
     for kind in COMMON:
-        assert names == set(COMMON[kind]) | set(PER_NOTEBOOK[name][kind]) | {"output_dir"}, kind
+        assert names == set(COMMON[kind]) | set(PLANS[name].parameters[kind]) | {"output_dir"}, kind
     assert notebook.metadata["kernelspec"]["name"] == "python3"
     code = [c for c in notebook.cells if c.cell_type == "code"]
     assert all(not c.outputs and c.execution_count is None for c in code), "source notebooks are committed without outputs"
 
 
 def _expected_files(out: Path) -> list[Path]:
-    smoke = {name: {**COMMON["smoke"], **PER_NOTEBOOK[name]["smoke"]} for name in PER_NOTEBOOK}
+    smoke = {name: {**COMMON["smoke"], **PLANS[name].parameters["smoke"]} for name in PLANS}
     results = ["table1_psb.csv", "table1_psb_runs.csv", "table2_coseg.csv", "table3_human.csv", "table4_ablation.csv",
                "table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv", "fig4_attention.csv",
                "fig4_test_meshes.csv", "claims_ledger.csv"]
-    results += [name.replace(".ipynb", ".json") for name in PER_NOTEBOOK]
+    results += [name.replace(".ipynb", ".json") for name in PLANS]
     figures = ["table3_human.png", "table4_ablation.png", "fig12_features.png", "fig12_renders.png", "fig4_attention.png",
-               "fig4_attention_paper.png", "fig5_8_predictions.png", "fig10_modes.png", "explore_levels.png", "explore_labels.png",
+               "fig4_attention_paper.png", "fig5_8_predictions.png", "fig10_modes.png", "explore_levels.png",
+               "explore_labels.png",
                "explore_confidence.png"]
     figures += [f"table2_coseg_{c}.png" for c in smoke["table2_coseg.ipynb"]["categories"]]
     figures += [f"fig11_cycles_ratio_{c}.png" for c in smoke["fig11_cycles_ratio.ipynb"]["categories"]]
@@ -54,12 +62,12 @@ def _expected_files(out: Path) -> list[Path]:
 @pytest.mark.slow
 def test_smoke_reproduction_runs_every_notebook(tmp_path):
     run = subprocess.run(
-        [sys.executable, "-m", "anseg.reproduce", "--smoke", "--out", str(tmp_path)],
+        [sys.executable, "-m", "anseg.study.reproduce", "--smoke", "--out", str(tmp_path)],
         cwd=REPO, env=os.environ.copy(), capture_output=True, text=True, timeout=SMOKE_TIMEOUT_S,
     )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
 
-    for name in PER_NOTEBOOK:
+    for name in PLANS:
         executed = nbformat.read(tmp_path / "notebooks" / name, as_version=4)
         code = [c for c in executed.cells if c.cell_type == "code"]
         errors = [o for c in code for o in c.outputs if o.output_type == "error"]
@@ -87,10 +95,10 @@ def test_real_plan_covers_every_table_once():
     # Table I 16 per split; Table IV's uniform and two "none" rows on 3 categories per split (its nonuniform row is
     # Table I's); Fig. 12's four paper sets on 3 categories per split (its fifth is Table I's); Fig. 11's grid on its
     # splits, less its points at N = 4 removing half (Table I's runs)
-    splits = len(PER_NOTEBOOK["table1_psb.ipynb"]["real"]["splits"])
-    table4_splits = len(PER_NOTEBOOK["table4_ablation.ipynb"]["real"]["splits"])
-    fig12_splits = len(PER_NOTEBOOK["fig12_features.ipynb"]["real"]["splits"])
-    fig11 = PER_NOTEBOOK["fig11_cycles_ratio.ipynb"]["real"]
+    splits = len(PLANS["table1_psb.ipynb"].parameters["real"]["splits"])
+    table4_splits = len(PLANS["table4_ablation.ipynb"].parameters["real"]["splits"])
+    fig12_splits = len(PLANS["fig12_features.ipynb"].parameters["real"]["splits"])
+    fig11 = PLANS["fig11_cycles_ratio.ipynb"].parameters["real"]
     fig11_runs = sum(len(r) for r in fig11["removed"].values()) * len(fig11["cycles_list"]) * len(fig11["splits"])
     fig11_shared = len(fig11["removed"]) * len(fig11["splits"])
     # and Table I's column of the paper's method as written, on its first split
@@ -120,7 +128,7 @@ def test_readme_headline_is_the_committed_results():
 
 
 def test_readme_ledger_is_the_committed_results():
-    from anseg import ledger
+    from anseg.study import ledger
 
     text = (REPO / "README.md").read_text()
     block = text[text.index(LEDGER_START) + len(LEDGER_START) : text.index(LEDGER_END)]
@@ -152,9 +160,9 @@ def test_headline_adds_the_mean_over_splits_when_there_are_several(tmp_path):
 def test_a_failed_notebook_never_replaces_its_executed_copy(tmp_path, monkeypatch, capsys):
     import papermill
 
-    from anseg import reproduce
+    from anseg.study import reproduce
 
-    name = next(iter(PER_NOTEBOOK))
+    name = next(iter(PLANS))
     executed = tmp_path / "notebooks" / name
     executed.parent.mkdir(parents=True)
     executed.write_text("the committed copy")
@@ -177,7 +185,7 @@ def test_a_failed_notebook_never_replaces_its_executed_copy(tmp_path, monkeypatc
 def test_real_notebooks_run_on_one_thread_unless_told_otherwise(tmp_path, monkeypatch):
     import papermill
 
-    from anseg import reproduce
+    from anseg.study import reproduce
 
     seen = []
     monkeypatch.setattr(papermill, "execute_notebook",
@@ -202,7 +210,7 @@ def test_chosen_splits_replace_the_plans_where_a_notebook_takes_several():
 def test_a_real_run_on_chosen_splits_says_which_committed_outputs_it_narrows(monkeypatch, capsys):
     import papermill
 
-    from anseg import reproduce
+    from anseg.study import reproduce
 
     def execute(source, target, **kwargs):
         raise RuntimeError("not run in this test")  # nothing is written: the committed copies stay
@@ -216,7 +224,7 @@ def test_a_real_run_on_chosen_splits_says_which_committed_outputs_it_narrows(mon
 
 
 def test_a_split_the_data_lacks_is_refused_in_one_line(capsys):
-    from anseg.reproduce import main
+    from anseg.study.reproduce import main
 
     with pytest.raises(SystemExit):
         main(["--data", "real", "--status", "--splits", "0", "5"])
@@ -224,8 +232,9 @@ def test_a_split_the_data_lacks_is_refused_in_one_line(capsys):
 
 
 def test_status_counts_the_stored_runs_and_the_training_left(tmp_path, capsys):
-    from anseg.experiments import ResultStore, output_dirs
-    from anseg.reproduce import main, status
+    from anseg.study.plan import output_dirs
+    from anseg.study.reproduce import main, status
+    from anseg.study.store import ResultStore
 
     (before,) = status("smoke", ["table4"], out=tmp_path)
     assert before["stored"] == 0 and before["planned"] > 1 and before["hours_left"] is None

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from anseg.datasets import PSB_CATEGORIES
-from anseg.experiments import REPO
+from anseg.study.store import REPO
 
 spec = importlib.util.spec_from_file_location("pack_psb", REPO / "scripts" / "pack_psb.py")
 pack_psb = importlib.util.module_from_spec(spec)

@@ -7,12 +7,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+from conftest import grid_mesh
 
 from anseg import datasets
 from anseg.pipeline import SegmentConfig, Segmenter, build_levels, segment
-from anseg.experiments import Experiment, run_experiment
+from anseg.study.runner import run_experiment
+from anseg.study.store import Experiment
 from anseg.train import TrainConfig, fit
-from conftest import grid_mesh
 
 FAST = SegmentConfig(cycles=2, clusters=4, patch_size=16)
 
@@ -114,7 +115,7 @@ def test_collapse_weights_clip_the_density_range_around_the_median():
 
 
 def test_combine_rules_weigh_the_levels_as_documented(model, shapes):
-    from anseg import collapse
+    from anseg.hierarchy import upsample_through
     from anseg.pipeline import class_probabilities, model_inputs
 
     levels = build_levels(shapes[4].mesh, model, FAST)
@@ -122,8 +123,8 @@ def test_combine_rules_weigh_the_levels_as_documented(model, shapes):
     with torch.no_grad():
         for index, level in enumerate(levels):
             probs = torch.softmax(model(**model_inputs(model, level, index, len(levels), "cpu")).logits, 1).double().numpy()
-            records = [lv.record for lv in levels[:index]]
-            per_level.append(collapse.upsample_through(records, probs) if records else probs)
+            records = [lv.record for lv in levels[:index]]  # by hand, as Hierarchy.upsample should
+            per_level.append(upsample_through(records, probs) if records else probs)
     expected = {"coarsest": per_level[-1], "all": np.mean(per_level, axis=0),
                 "decay": np.average(per_level, axis=0, weights=[1.0, 0.5, 0.25])}
     for rule, want in expected.items():
@@ -155,17 +156,15 @@ def test_an_ensemble_averages_its_models_probabilities(model, shapes):
 
 
 def test_every_level_gets_labels_and_attention(model, shapes):
-    from anseg.pipeline import fill_attention, level_labels
+    from anseg.pipeline import fill_attention
 
     item = shapes[4]
     levels = build_levels(item.mesh, model, replace(FAST, mode="uniform"))
     assert all(level.attention is None for level in levels)  # a uniform collapse asks the model for nothing
     assert fill_attention(model, levels) is levels
     assert all(level.attention.shape == (level.mesh.n_faces,) for level in levels)
-    labels = level_labels(levels, item.labels, model.n_classes)
+    labels = levels.labels_on_every_level(item.labels, model.n_classes)
     assert labels[0] is item.labels and [len(x) for x in labels] == [level.mesh.n_faces for level in levels]
     # a coarse face takes the area majority of the input faces it stands for: most of the area keeps its label
-    from anseg.collapse import compose
-
-    back = labels[-1][compose([level.record for level in levels[:-1]])]
+    back = labels[-1][levels.input_to_level(len(levels) - 1)]
     assert item.mesh.face_areas[back == item.labels].sum() > 0.8 * item.mesh.face_areas.sum()

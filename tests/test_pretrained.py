@@ -11,11 +11,10 @@ import torch
 
 from anseg import datasets, pipeline, pretrained
 from anseg.cli import main
-from anseg.experiments import REPO
 from anseg.mesh import save_mesh
 from anseg.pipeline import SegmentConfig, Segmenter, segment
+from anseg.study.store import REPO
 from anseg.train import TrainConfig, fit
-
 
 spec = importlib.util.spec_from_file_location("publish_models", REPO / "scripts" / "publish_models.py")
 publish_models = importlib.util.module_from_spec(spec)
@@ -99,7 +98,7 @@ def test_cli_lists_and_segments_with_a_pretrained_model(shipped, tmp_path, capsy
 
 
 def test_each_shipped_name_comes_from_one_run_of_the_shipped_configuration():
-    from anseg.experiments import notebook_parameters, notebook_runs
+    from anseg.study.plan import notebook_parameters, notebook_runs
 
     for notebook, name_of in publish_models.SOURCES.items():
         p = {**notebook_parameters(notebook, "real"), "config": "default"}
@@ -112,11 +111,11 @@ def test_each_shipped_name_comes_from_one_run_of_the_shipped_configuration():
 
 
 def test_a_notebook_uses_the_shipped_model_of_a_run_whose_own_model_is_absent(shipped, tmp_path):
-    from anseg.experiments import COMMON, PER_NOTEBOOK
-    from anseg.notebook import start
+    from anseg.study.notebook import start
+    from anseg.study.plan import COMMON, PLANS
 
     model, entry, test_set = shipped
-    parameters = {**COMMON["smoke"], **PER_NOTEBOOK["table3_human.ipynb"]["smoke"], "output_dir": str(tmp_path / "nb")}
+    parameters = {**COMMON["smoke"], **PLANS["table3_human.ipynb"].parameters["smoke"], "output_dir": str(tmp_path / "nb")}
     nb = start("table3_human", parameters)
     assert entry["run"] == "0123456789abcdef" and nb.has_model({"key": entry["run"]})
     loaded = nb.load_model({"key": entry["run"]})
@@ -130,8 +129,8 @@ def test_a_notebook_uses_the_shipped_model_of_a_run_whose_own_model_is_absent(sh
 
 
 def test_the_figures_models_are_those_the_figure_notebooks_render():
-    from anseg.experiments import OWN_FEATURES, notebook_parameters, notebook_runs
     from anseg.features import ABLATION_SETS
+    from anseg.study.plan import OWN_FEATURES, notebook_parameters, notebook_runs
 
     chosen = {}
     for notebook, rendered in publish_models.RENDERED.items():
@@ -200,7 +199,7 @@ def test_every_shipped_model_gives_its_runs_labels_on_a_test_mesh(name, data_roo
 
 
 def test_explore_uses_a_shipped_model_only_under_its_configuration(shipped):
-    from anseg.experiments import explore_model_name
+    from anseg.study.plan import explore_model_name
 
     assert explore_model_name({"dataset": "synthetic", "category": "figure", "config": "default"}) is None  # not psb
     assert explore_model_name({"dataset": "figure", "category": "synthetic/figure", "config": "default"}) \

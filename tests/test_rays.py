@@ -9,9 +9,10 @@ import sys
 import numba
 import numpy as np
 import pytest
-
-from anseg import rays
 from test_features import blob
+
+from anseg.geometry import rays
+
 
 def test_ray_caster_finds_the_same_first_hits_as_libigl():
     import igl
@@ -45,7 +46,7 @@ def test_casting_rays_leaves_torch_with_the_threads_it_had():
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread on this machine, so it cannot change torch's count")
     script = ("import numpy as np, torch\n"
-              "from anseg import rays\n"
+              "from anseg.geometry import rays\n"
               "torch.ones(64, 64) @ torch.ones(64, 64)\n"  # the network ran before this mesh's features
               "bvh = rays.build_bvh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))\n"
               "rays.first_hits(bvh, np.full((5000, 3), [0.2, 0.2, 1.0]), np.tile([0.0, 0, -1], (5000, 1)))\n"

@@ -8,8 +8,9 @@ import json
 import pytest
 import torch
 
-from anseg.experiments import REPO, Experiment, code_revision, train_and_evaluate
 from anseg.pipeline import SegmentConfig
+from anseg.study.runner import train_and_evaluate
+from anseg.study.store import REPO, Experiment, code_revision
 from anseg.train import TrainConfig
 
 spec = importlib.util.spec_from_file_location("replay_run", REPO / "scripts" / "replay_run.py")
@@ -38,7 +39,8 @@ def test_a_run_that_cannot_be_replayed_says_why_in_one_line(tmp_path, capsys):
 
 
 def test_versions_that_differ_are_named():
-    assert replay_run.version_differences({"torch": "0.0.1", "numpy": None}) == [f"torch 0.0.1 recorded, {torch.__version__} here"]
+    assert (replay_run.version_differences({"torch": "0.0.1", "numpy": None})
+            == [f"torch 0.0.1 recorded, {torch.__version__} here"])
 
 
 @pytest.mark.slow

@@ -47,7 +47,8 @@ def test_a_plain_script_without_main_guard_runs_with_a_cold_cache(tmp_path):
 
 
 PLAN_SCRIPT = textwrap.dedent('''
-    from anseg.experiments import Experiment, ResultStore, run_plan
+    from anseg.study.runner import run_plan
+    from anseg.study.store import Experiment, ResultStore
     from anseg.pipeline import SegmentConfig
     from anseg.train import TrainConfig
 

@@ -1,4 +1,4 @@
-"""anseg.sdf: the ray pattern and the robust mean of ray lengths (the casts themselves: test_features, test_rays)."""
+"""anseg.geometry.sdf: the ray pattern and the robust mean of ray lengths (the casts themselves: test_features, test_rays)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from anseg import sdf
+from anseg.geometry import sdf
 
 
 @settings(max_examples=30, deadline=None)

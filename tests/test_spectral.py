@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from anseg import spectral
+from anseg.geometry import spectral
 from anseg.mesh import Mesh
 
 
@@ -69,7 +69,7 @@ def test_the_hks_and_the_spectrum_of_one_mesh_share_one_solve(monkeypatch):
 
 
 def test_a_large_mesh_takes_its_basis_from_the_proxy_collapse(monkeypatch):
-    from anseg import proxy
+    from anseg.geometry import proxy
 
     sphere = trimesh.creation.icosphere(subdivisions=4)
     mesh = Mesh(sphere.vertices * [2.0, 1.0, 0.7], sphere.faces)  # distinct axes: the low eigenvalues are simple

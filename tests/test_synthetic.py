@@ -8,8 +8,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from anseg import datasets
-from anseg.datasets import DatasetError, LabeledMesh
-from anseg.datasets import synthetic
+from anseg.datasets import DatasetError, LabeledMesh, synthetic
 
 SHAPES = [("figure", 0), ("figure", 1), ("vessel", 0), ("vessel", 3)]
 

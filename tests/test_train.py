@@ -12,9 +12,10 @@ from sklearn.linear_model import LogisticRegression
 
 from anseg import datasets, features
 from anseg.configs import configuration
+from anseg.hierarchy import pool
 from anseg.metrics import pooled_accuracy
 from anseg.pipeline import SegmentConfig
-from anseg.experiments import Experiment
+from anseg.study.store import Experiment
 from anseg.train import TrainConfig, evaluate, feature_statistics, fit, fit_and_time
 
 SMALL = SegmentConfig(cycles=2, clusters=4, patch_size=16)
@@ -133,7 +134,7 @@ def test_experiment_keys_of_committed_results_stay_put():
 
 
 def test_trained_on_names_the_gpu_or_the_cpu_count():
-    from anseg.experiments import trained_on
+    from anseg.study.store import trained_on
 
     assert trained_on({"environment": {"cuda": "NVIDIA H100 80GB HBM3", "cpus": 16}}) == "NVIDIA H100 80GB HBM3"
     assert trained_on({"environment": {"cuda": None, "cpus": 2}}) == "CPU, 2 cores"
@@ -150,7 +151,8 @@ def test_depth_zero_trains_only_without_downsampling(split):
     train_set, _ = split
     with pytest.raises(ValueError, match="needs mode 'none'"):
         fit(train_set, train_set[0].label_names, SMALL, TrainConfig(depth=0, epochs=1), progress=False)
-    model = fit(train_set[:2], train_set[0].label_names, replace(SMALL, mode="none"), TrainConfig(depth=0, epochs=1), progress=False)
+    model = fit(train_set[:2], train_set[0].label_names, replace(SMALL, mode="none"),
+                TrainConfig(depth=0, epochs=1), progress=False)
     assert len(model.network.blocks) == 0
 
 
@@ -233,7 +235,6 @@ def test_only_attention_makes_a_rebuild(split, monkeypatch):
 
 
 def test_spatial_context_trains_and_carries_the_eigenbasis_to_every_level(split):
-    from anseg import collapse
     from anseg.pipeline import segment
 
     train_set, test_set = split
@@ -245,7 +246,7 @@ def test_spatial_context_trains_and_carries_the_eigenbasis_to_every_level(split)
     levels = result.levels
     for fine, coarse in zip(levels, levels[1:]):
         assert coarse.spectrum.basis.shape == (coarse.mesh.n_faces, 64)
-        expected = collapse.pool(fine.record, fine.spectrum.basis, fine.mesh.face_areas)
+        expected = pool(fine.record, fine.spectrum.basis, fine.mesh.face_areas)
         np.testing.assert_allclose(coarse.spectrum.basis, expected, rtol=1e-5, atol=1e-6)
 
 

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import torch
 
-from anseg import comparison, validate
 from anseg.configs import parse_overrides
-from anseg.experiments import Experiment
 from anseg.pipeline import SegmentConfig
-from anseg.comparison import paired_difference
-from anseg.validate import Arm, Cell, fold_of
+from anseg.study import comparison, validate
+from anseg.study.comparison import paired_difference
+from anseg.study.store import Experiment
+from anseg.study.validate import Arm, Cell, fold_of
 
 SMALL = {"cycles": 2, "clusters": 4}
 SYNTHETIC = dict(dataset="synthetic", options=(("n_shapes", 8),))
@@ -128,7 +128,8 @@ def test_seed_spread_reads_each_cell_across_its_seeds(tmp_path):
     values = {("A", 0): (70, 74), ("A", 1): (80, 82), ("B", 0): (77, 77)}
     results = [{"arm": "default", "category": c, "fold": f, "seed": s, "accuracy": {"unit_area": v[s] / 100}}
                for (c, f), v in values.items() for s in (0, 1)]
-    results.append({"arm": "default", "category": "B", "fold": 1, "seed": 0, "accuracy": {"unit_area": 0.1}})  # one seed: left out
+    # one seed: left out
+    results.append({"arm": "default", "category": "B", "fold": 1, "seed": 0, "accuracy": {"unit_area": 0.1}})
     (row,) = comparison.seed_spread(comparison.accuracy_table(results))
     assert row["cells"] == 3 and row["seeds"] == 2
     assert row["median_range"] == pytest.approx(2.0) and row["max_range"] == pytest.approx(4.0)

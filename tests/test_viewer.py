@@ -11,12 +11,18 @@ import sys
 import numpy as np
 import pytest
 import torch
+from conftest import (
+    OFFLINE,
+    off_machine,
+    offline_python,
+    page_requests,
+    screenshot_folder,
+)
 
 from anseg import datasets, viewer
 from anseg.pipeline import SegmentConfig, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
-from conftest import OFFLINE, off_machine, offline_python, page_requests, screenshot_folder
 
 CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None)
 

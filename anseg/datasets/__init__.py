@@ -31,7 +31,8 @@ from anseg.datasets.psb import PSB_CATEGORIES, PSB_SPLIT_COUNT, psb_split
 DATASETS = ("psb", "coseg_aliens", "coseg_chairs", "coseg_vases", "human_seg", "coseg", "maron", "synthetic")
 
 
-def load(name: str, category: str | None = None, split: str = "train", split_index: int = 0, root: str | os.PathLike | None = None, **options) -> list[LabeledMesh]:
+def load(name: str, category: str | None = None, split: str = "train", split_index: int = 0,
+         root: str | os.PathLike | None = None, **options) -> list[LabeledMesh]:
     """Read a data set (or a PSB / COSEG category) as a list of :class:`LabeledMesh`.
 
     ``split`` is "train", "test" or "all"; ``split_index`` picks one of the

@@ -42,7 +42,8 @@ class LabeledMesh:
         if self.labels.shape != (n_faces,):
             raise DatasetError(f"{self.name}: {self.labels.shape[0]} labels for {n_faces} faces")
         if n_faces and (self.labels.min() < 0 or self.labels.max() >= n_classes):
-            raise DatasetError(f"{self.name}: labels span [{self.labels.min()}, {self.labels.max()}] but there are {n_classes} label names")
+            raise DatasetError(f"{self.name}: labels span [{self.labels.min()}, {self.labels.max()}] "
+                               f"but there are {n_classes} label names")
         if self.soft_labels is not None:
             self.soft_labels = np.asarray(self.soft_labels, dtype=np.float64)
             if self.soft_labels.shape != (n_faces, n_classes):

@@ -22,8 +22,16 @@ import random
 from collections.abc import Sequence
 from pathlib import Path
 
-from anseg.datasets.common import DatasetError, LabeledMesh, labeled_mesh, natural_key, progress_bar, read_integer_column, read_mesh
 from anseg.datasets.archive import dataset_folder
+from anseg.datasets.common import (
+    DatasetError,
+    LabeledMesh,
+    labeled_mesh,
+    natural_key,
+    progress_bar,
+    read_integer_column,
+    read_mesh,
+)
 
 FOLDER = "coseg"
 
@@ -58,17 +66,20 @@ def zero_based(labels_by_file: dict, where: Path) -> tuple[dict, list[str]]:
     return {key: labels - lowest for key, labels in labels_by_file.items()}, names
 
 
-def load(root: Path, category: str | None, split: str, split_index: int = 0, progress: bool = True, train_fraction: float = 0.6) -> list[LabeledMesh]:
+def load(root: Path, category: str | None, split: str, split_index: int = 0,
+         progress: bool = True, train_fraction: float = 0.6) -> list[LabeledMesh]:
     """Read COSEG set ``category`` in ``split`` ("train", "test" or "all") of shuffled split ``split_index``."""
     base = dataset_folder(root, FOLDER)
     present = sorted(p.name for p in base.iterdir() if (p / "shapes").is_dir())
     if category not in present:
-        raise DatasetError(f"COSEG needs a set name as category; got {category!r}, sets under {base}: {', '.join(present) or 'none'}")
+        raise DatasetError(f"COSEG needs a set name as category; got {category!r}, "
+                           f"sets under {base}: {', '.join(present) or 'none'}")
     folder = base / category
     mesh_paths = sorted((folder / "shapes").glob("*.off"), key=lambda p: natural_key(p.stem))
     if not mesh_paths:
         raise DatasetError(f"{folder / 'shapes'}: no .off meshes")
-    face_labels, names = zero_based({p.stem: read_integer_column(folder / "gt" / f"{p.stem}.seg") for p in mesh_paths}, folder / "gt")
+    face_labels, names = zero_based({p.stem: read_integer_column(folder / "gt" / f"{p.stem}.seg") for p in mesh_paths},
+                                    folder / "gt")
     if split != "all":
         if not 0 < train_fraction < 1:
             raise DatasetError(f"train_fraction must be between 0 and 1, got {train_fraction}")
@@ -78,6 +89,7 @@ def load(root: Path, category: str | None, split: str, split_index: int = 0, pro
         mesh = read_mesh(path)
         labels = face_labels[path.stem]
         if len(labels) != mesh.n_faces:
-            raise DatasetError(f"{folder / 'gt' / (path.stem + '.seg')}: {len(labels)} labels but {path.name} has {mesh.n_faces} faces")
+            raise DatasetError(f"{folder / 'gt' / (path.stem + '.seg')}: {len(labels)} labels "
+                               f"but {path.name} has {mesh.n_faces} faces")
         meshes.append(labeled_mesh(mesh, labels, names, f"{category}/{path.stem}", path))
     return meshes

@@ -26,8 +26,16 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.datasets.common import DatasetError, LabeledMesh, labeled_mesh, natural_key, progress_bar, read_integer_column, read_mesh
 from anseg.datasets.archive import dataset_folder
+from anseg.datasets.common import (
+    DatasetError,
+    LabeledMesh,
+    labeled_mesh,
+    natural_key,
+    progress_bar,
+    read_integer_column,
+    read_mesh,
+)
 from anseg.datasets.coseg import zero_based
 from anseg.datasets.meshcnn import majority_of_three
 from anseg.mesh import SUPPORTED_SUFFIXES, Mesh
@@ -59,7 +67,8 @@ def label_file(segs: Path, relative: Path) -> Path:
     shared = sorted(mirrored.parent.glob("*.txt"))
     if len(shared) == 1:
         return shared[0]
-    raise DatasetError(f"no label file for meshes/{relative}: expected {mirrored}" + (f" (its folder holds {len(shared)} others)" if shared else ""))
+    raise DatasetError(f"no label file for meshes/{relative}: expected {mirrored}"
+                       + (f" (its folder holds {len(shared)} others)" if shared else ""))
 
 
 def load(root: Path, split: str, progress: bool = True) -> list[LabeledMesh]:
@@ -89,6 +98,7 @@ def load(root: Path, split: str, progress: bool = True) -> list[LabeledMesh]:
         if len(labels) == mesh.n_vertices and len(labels) != mesh.n_faces:
             labels, ties = vertex_labels_to_faces(mesh, labels)
         elif len(labels) != mesh.n_faces:
-            raise DatasetError(f"{source}: {len(labels)} labels, but meshes/{path} has {mesh.n_faces} faces and {mesh.n_vertices} vertices")
+            raise DatasetError(f"{source}: {len(labels)} labels, but meshes/{path} has "
+                               f"{mesh.n_faces} faces and {mesh.n_vertices} vertices")
         meshes.append(labeled_mesh(mesh, labels, names, path.with_suffix("").as_posix(), meshes_dir / path, label_ties=ties))
     return meshes

@@ -31,11 +31,21 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.datasets.common import DatasetError, LabeledMesh, labeled_mesh, natural_key, progress_bar, read_integer_column, read_mesh, read_table
 from anseg.datasets.archive import dataset_folder
+from anseg.datasets.common import (
+    DatasetError,
+    LabeledMesh,
+    labeled_mesh,
+    natural_key,
+    progress_bar,
+    read_integer_column,
+    read_mesh,
+    read_table,
+)
 from anseg.mesh import Mesh
 
-ARCHIVES = {"coseg_aliens": "coseg.tar.gz", "coseg_chairs": "coseg.tar.gz", "coseg_vases": "coseg.tar.gz", "human_seg": "human_seg.tar.gz"}
+ARCHIVES = {"coseg_aliens": "coseg.tar.gz", "coseg_chairs": "coseg.tar.gz", "coseg_vases": "coseg.tar.gz",
+            "human_seg": "human_seg.tar.gz"}
 
 
 def majority_of_three(votes: np.ndarray, priority: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

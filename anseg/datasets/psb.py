@@ -24,8 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.datasets.common import DatasetError, LabeledMesh, labeled_mesh, progress_bar, read_mesh
 from anseg.datasets.archive import dataset_folder
+from anseg.datasets.common import (
+    DatasetError,
+    LabeledMesh,
+    labeled_mesh,
+    progress_bar,
+    read_mesh,
+)
 
 FOLDER = "LabeledDB_new"
 ARCHIVE = "psb_labeled.tar.gz"
@@ -47,7 +53,8 @@ def psb_split(category: str, split_index: int = 0) -> dict[str, list[int]]:
     if not 0 <= split_index < len(splits):
         raise DatasetError(f"PSB split_index must be in 0..{len(splits) - 1}, got {split_index}")
     if category not in splits[split_index]:
-        raise DatasetError(f"PSB category {category!r} has no train/test split; categories with splits: {', '.join(PSB_CATEGORIES)}")
+        raise DatasetError(f"PSB category {category!r} has no train/test split; "
+                           f"categories with splits: {', '.join(PSB_CATEGORIES)}")
     chosen = splits[split_index][category]
     return {"train": list(chosen["train"]), "test": list(chosen["test"])}
 
@@ -87,7 +94,8 @@ def read_face_labels(path: Path, n_faces: int, label_names: list[str]) -> np.nda
         try:
             ids = np.array(indices.split(), dtype=np.int64) - 1
         except ValueError:
-            raise DatasetError(f"{path}: the face index line of part {part!r} (pair {line_number + 1}) holds a non-integer") from None
+            raise DatasetError(f"{path}: the face index line of part {part!r} "
+                               f"(pair {line_number + 1}) holds a non-integer") from None
         faces.append(ids)
         labels.append(np.full(len(ids), index_of[part], dtype=np.int64))
     faces = np.concatenate(faces) if faces else np.empty(0, dtype=np.int64)
@@ -97,9 +105,11 @@ def read_face_labels(path: Path, n_faces: int, label_names: list[str]) -> np.nda
         raise DatasetError(f"{path}: face index {faces[outside][0] + 1} out of range 1..{n_faces}")
     times = np.bincount(faces, minlength=n_faces)
     if (times > 1).any():
-        raise DatasetError(f"{path}: {int((times > 1).sum())} faces labelled more than once (first: face {np.flatnonzero(times > 1)[0] + 1})")
+        raise DatasetError(f"{path}: {int((times > 1).sum())} faces labelled more than once "
+                           f"(first: face {np.flatnonzero(times > 1)[0] + 1})")
     if (times == 0).any():
-        raise DatasetError(f"{path}: {int((times == 0).sum())} of {n_faces} faces have no label (first: face {np.flatnonzero(times == 0)[0] + 1})")
+        raise DatasetError(f"{path}: {int((times == 0).sum())} of {n_faces} faces have no label "
+                           f"(first: face {np.flatnonzero(times == 0)[0] + 1})")
     out = np.empty(n_faces, dtype=np.int64)
     out[faces] = labels
     return out

@@ -4,7 +4,7 @@ Each signal is diffused for time r^2 / 4 at a few geodesic radii r (one
 implicit heat step each; r^2 / 4 is the time at which a 2-D heat kernel has
 spread to a root-mean-square radius r), so a face sees its wide
 neighbourhood. Solved on the vertices with the cotan Laplacian; a mesh above
-:data:`anseg.proxy.LARGE_MESH_FACES` faces is solved on its proxy and
+:data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces is solved on its proxy and
 interpolated back. Both paths keep constants constant and the area integral
 of every signal exactly.
 """
@@ -16,8 +16,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from anseg.geometry.spectral import factor_spd
 from anseg.mesh import Mesh, MeshError
-from anseg.spectral import factor_spd
 
 DIRECT_SOLVE_MAX_VERTICES = 30_000  # sparse LU up to here, multigrid-preconditioned CG above
 DIFFUSION_RTOL = 1e-10  # the iterative solve: relative residual
@@ -46,7 +46,7 @@ def diffuse_through_proxy(mesh: Mesh, coarse: Mesh, face_of: np.ndarray, signals
                           threads: int = 1) -> list[np.ndarray]:
     """:func:`diffuse_on_faces` for a large mesh, solved on the vertices of ``coarse``, its proxy.
 
-    ``face_of`` (F,) is each face's face on ``coarse`` (:func:`anseg.proxy.collapse_to_proxy`).
+    ``face_of`` (F,) is each face's face on ``coarse`` (:func:`anseg.geometry.proxy.collapse_to_proxy`).
 
     Each face's value is the barycentric interpolation, at its centroid, of
     the proxy face it collapsed into (a transfer P, F x V_proxy, rows summing
@@ -96,7 +96,7 @@ def diffusion_solves(mass, laplacian, rhs: np.ndarray, radii: Sequence[float], m
     solves it (0.12 s at 20K faces, half the time of the iterative solve);
     its fill grows much faster than the mesh (20 s per radius at 82K faces,
     more than 10 minutes at 330K), so more vertices (an open or fragmented
-    mesh of up to :data:`anseg.proxy.LARGE_MESH_FACES` faces, or its proxy) are solved by
+    mesh of up to :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces, or its proxy) are solved by
     conjugate gradients preconditioned by smoothed-aggregation algebraic
     multigrid (pyamg) to a relative residual of :data:`DIFFUSION_RTOL`, each
     radius starting from the last one's solution: at 330K faces 4 s where

@@ -34,4 +34,4 @@ def collapse_to_proxy(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     with warnings.catch_warnings():  # a target missed by a few faces changes nothing here
         warnings.simplefilter("ignore", collapse.CollapseWarning)
         coarse, record = collapse.downsample(mesh, None, ratio=PROXY_FACES / mesh.n_faces, mode="uniform")
-    return coarse, collapse.compose([record])
+    return coarse, record.fine_to_coarse

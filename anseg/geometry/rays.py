@@ -72,7 +72,7 @@ def build_bvh(vertices: np.ndarray, faces: np.ndarray) -> tuple:
 def embree_caster(mesh: Mesh, threads: int = 1):
     """First hits through embree (embreex): 3x faster than our tree at 330K faces, in float32.
 
-    Used above :data:`anseg.proxy.LARGE_MESH_FACES` only: on a 330K-face mesh it finds the
+    Used above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` only: on a 330K-face mesh it finds the
     same face for 99.998 % of the SDF rays, at distances within a relative
     5e-8, but those float32 distances would move the last bits of every
     stored feature of the benchmark meshes, and with them the stored runs.
@@ -103,7 +103,8 @@ def first_hits(bvh: tuple, origins: np.ndarray, directions: np.ndarray) -> tuple
     hit_face = np.empty(len(origins), dtype=np.int64)
     hit_t = np.empty(len(origins))
     numba_threads()  # the kernel would start numba's threads otherwise, and change torch's count
-    _cast_rays(np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64), *bvh, hit_face, hit_t)
+    _cast_rays(np.ascontiguousarray(origins, dtype=np.float64),
+               np.ascontiguousarray(directions, dtype=np.float64), *bvh, hit_face, hit_t)
     return hit_face, hit_t
 
 

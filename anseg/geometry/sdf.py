@@ -5,8 +5,8 @@ normal; misses and hits that enter a surface from outside are dropped, the
 rays further than one standard deviation from the face's median rejected,
 and the rest averaged with cosine weights. The ray pattern is laid out in a
 frame built from the face's own edges, so the values turn with the mesh.
-Rays go to our BVH caster (:mod:`anseg.rays`), or to embree on a mesh above
-:data:`anseg.proxy.LARGE_MESH_FACES` faces. :mod:`anseg.features` turns the
+Rays go to our BVH caster (:mod:`anseg.geometry.rays`), or to embree on a mesh above
+:data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces. :mod:`anseg.features` turns the
 values into its ``sdf`` group.
 """
 
@@ -18,7 +18,7 @@ from functools import partial
 
 import numpy as np
 
-from anseg import proxy, rays
+from anseg.geometry import proxy, rays
 from anseg.mesh import Mesh
 
 RAY_OFFSET = 1e-7  # rays start this far inside the surface, so that they do not hit their own face

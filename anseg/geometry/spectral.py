@@ -20,8 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from anseg import proxy
-from anseg.cache import atomic_write, cache_dir, library_versions, read_checked_array, write_checked_array
+from anseg.cache import (
+    atomic_write,
+    cache_dir,
+    library_versions,
+    read_checked_array,
+    write_checked_array,
+)
+from anseg.geometry import proxy
 from anseg.mesh import Mesh
 
 SPECTRUM_PAIRS = 64  # eigenpairs of the HKS and of the network's spectrum
@@ -96,7 +102,7 @@ def face_spectrum(mesh: Mesh, n_pairs: int = SPECTRUM_PAIRS, cache: bool = True)
 
     A mesh with too few vertices for ``n_pairs`` gets zero columns past its
     last eigenvector (they carry nothing through a product with the basis).
-    Above :data:`anseg.proxy.LARGE_MESH_FACES` faces the basis is solved
+    Above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces the basis is solved
     on the same uniform collapse the large-mesh HKS uses and each face takes
     its face's values there: the low eigenvectors are smooth.
     """

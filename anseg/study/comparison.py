@@ -1,6 +1,6 @@
 """How a validation study's arms compare: paired differences over categories x folds, their cost, the seeds' spread.
 
-The numbers :mod:`anseg.validate` prints and writes for a study: per arm and
+The numbers :mod:`anseg.study.validate` prints and writes for a study: per arm and
 category the mean held-out accuracy (Eq. 5, unit area) beside the accuracy on
 the cells' own training meshes, the suite mean (the
 mean over categories) with the spread of that mean over the fold x seed
@@ -141,7 +141,8 @@ def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict
 
 
 def write_report(results: list[dict], baseline: str, out: str | Path, study: str) -> str:
-    """Write ``<out>/<study>_accuracy.csv``, ``_paired.csv`` (and ``_seeds.csv`` with several seeds); return the report as text."""
+    """Write ``<out>/<study>_accuracy.csv``, ``_paired.csv`` (and ``_seeds.csv`` with several seeds);
+    return the report as text."""
     rows, comparisons = summarize(results, baseline)
     spread = seed_spread(accuracy_table(results))
     out = Path(out)

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from anseg import ledger
-from anseg.experiments import TABLE_IV_ROWS
+from anseg.study import ledger
+from anseg.study.plan import TABLE_IV_ROWS
 
-HEADLINE_START = "<!-- headline: written by `python -m anseg.reproduce --data real` from results/*.csv; do not edit -->"
+HEADLINE_START = "<!-- headline: written by `python -m anseg.study.reproduce --data real` from results/*.csv; do not edit -->"
 HEADLINE_END = "<!-- /headline -->"
-LEDGER_START = "<!-- ledger: written by `python -m anseg.reproduce --data real` from results/*.csv; do not edit -->"
+LEDGER_START = "<!-- ledger: written by `python -m anseg.study.reproduce --data real` from results/*.csv; do not edit -->"
 LEDGER_END = "<!-- /ledger -->"
 
 

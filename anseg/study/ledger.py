@@ -20,8 +20,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from anseg import reference
-from anseg.experiments import PLAIN_READING
+from anseg.study import reference
+from anseg.study.plan import PLAIN_READING
 
 HOLDS, FAILS, UNTESTED = "holds", "does not hold", "cannot be tested here"
 SIGN_ALONE = " (one split: no spread, the sign decides)"  # how a paired difference of one split is read
@@ -135,7 +135,8 @@ class PairedDifference:
 
 
 def paired_over_splits(runs, better: str, worse: str) -> PairedDifference:
-    """The paired difference of two Table IV rows from its runs (``table4_ablation_runs.csv``: category, split, mode, unit_area)."""
+    """The paired difference of two Table IV rows from its runs
+    (``table4_ablation_runs.csv``: category, split, mode, unit_area)."""
     per_split = runs.pivot_table(index=["category", "split"], columns="mode", values="unit_area")
     by_split = (per_split[better] - per_split[worse]).groupby("split").mean()
     return PairedDifference(better, worse, tuple(float(d) for d in by_split))

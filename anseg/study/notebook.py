@@ -4,7 +4,7 @@ A notebook's parameter cell (papermill fills it in) defines its parameters;
 :func:`start` reads them from the notebook's namespace, makes the output
 folders, says plainly when the data is synthetic, prints the run record and
 returns a :class:`NotebookRun`. That object gives the notebook its planned
-runs (the one declaration in :func:`anseg.experiments.notebook_runs`) with
+runs (the one declaration in :func:`anseg.study.plan.notebook_runs`) with
 their stored or freshly trained results, their models and test meshes; its
 :meth:`~NotebookRun.finish` writes the record, wall time included, beside
 the notebook's results.
@@ -18,27 +18,24 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
-from anseg.experiments import (
+from anseg.pipeline import SegmentConfig, Segmenter
+from anseg.study.plan import (
     COMMON,
-    PER_NOTEBOOK,
+    PLANS,
     RECORD_CONFIGURATION,
-    REPO,
     PlannedRun,
-    ResultStore,
-    environment,
     notebook_runs,
     notebook_settings,
     planned_experiment,
     resolve_categories,
-    run_experiment,
-    trained_on,
 )
-from anseg.pipeline import SegmentConfig, Segmenter
+from anseg.study.runner import run_experiment
+from anseg.study.store import REPO, ResultStore, environment, trained_on
 
 SYNTHETIC_NOTICE = (
     "**Synthetic data: a check that this notebook runs, not a reproduction.** {smoke}"
     "The paper has no numbers for these shapes, so none are set beside ours. "
-    "`python -m anseg.reproduce --data real` runs the benchmark."
+    "`python -m anseg.study.reproduce --data real` runs the benchmark."
 )
 
 
@@ -51,8 +48,8 @@ class NotebookRun:
     """One execution of one notebook: its parameters, settings, planned runs, outputs and record."""
 
     def __init__(self, name: str, parameters: dict):
-        if f"{name}.ipynb" not in PER_NOTEBOOK:
-            raise ValueError(f"no notebook {name!r} in the plan; known: {', '.join(sorted(PER_NOTEBOOK))}")
+        if f"{name}.ipynb" not in PLANS:
+            raise ValueError(f"no notebook {name!r} in the plan; known: {', '.join(sorted(PLANS))}")
         self.name = name
         self.started = time.time()  # the wall time of the record counts from here
         self.parameters = resolve_categories(parameters)
@@ -228,7 +225,8 @@ def start(name: str, namespace: dict) -> NotebookRun:
     from tqdm import TqdmWarning
 
     warnings.filterwarnings("ignore", category=TqdmWarning)  # without ipywidgets, tqdm's text bars are fine
-    names = [*COMMON["real"], *PER_NOTEBOOK.get(f"{name}.ipynb", {}).get("real", {}), "output_dir"]  # the cell's order
+    plan = PLANS.get(f"{name}.ipynb")
+    names = [*COMMON["real"], *(plan.parameters["real"] if plan else {}), "output_dir"]  # the cell's order
     missing = [key for key in names if key not in namespace]
     if missing:
         raise ValueError(f"{name}: the parameter cell does not define {', '.join(missing)}")

@@ -180,5 +180,6 @@ def same_data(dataset: str) -> list[dict]:
 
 
 def measured_on_our_data(key: str) -> dict[str, float]:
-    """Each :data:`MEASURED_ON_OUR_DATA` method's value for ``key`` (a PSB category, ``"psb_mean"`` or ``"human_seg"``), where measured."""
+    """Each :data:`MEASURED_ON_OUR_DATA` method's value for ``key``
+    (a PSB category, ``"psb_mean"`` or ``"human_seg"``), where measured."""
     return {name: ref["values"][key] for name, ref in MEASURED_ON_OUR_DATA.items() if key in ref["values"]}

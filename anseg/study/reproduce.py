@@ -1,11 +1,11 @@
-"""Run every notebook through papermill: ``python -m anseg.reproduce --data synthetic|real``.
+"""Run every notebook through papermill: ``python -m anseg.study.reproduce --data synthetic|real``.
 
 ``synthetic`` (the default of ``make reproduce``) runs on the embedded
 generator with small settings and writes under ``runs/synthetic/``; ``real``
 runs on the benchmark archives (``$ANSEG_DATA``) with the paper's settings
 and writes the committed outputs: ``notebooks/executed/``, ``figures/`` and
 ``results/``. ``--smoke`` shrinks the synthetic settings further, for CI.
-Each notebook takes its parameters from the plan (:mod:`anseg.experiments`);
+Each notebook takes its parameters from the plan (:mod:`anseg.study`);
 nothing else differs between the runs.
 
 ``--train-only --workers N`` trains the notebooks' configurations without
@@ -27,19 +27,18 @@ import time
 from pathlib import Path
 
 from anseg.configs import NAMED
-from anseg.experiments import (
+from anseg.study.headline import update_readme
+from anseg.study.plan import (
     COMMON,
-    PER_NOTEBOOK,
-    REPO,
-    ResultStore,
+    PLANS,
     notebook_parameters,
     output_dirs,
     planned_experiments,
-    run_plan,
     selected_notebooks,
     with_choices,
 )
-from anseg.headline import update_readme
+from anseg.study.runner import run_plan
+from anseg.study.store import REPO, ResultStore
 
 NOTEBOOKS = REPO / "notebooks"
 
@@ -62,14 +61,14 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
         os.environ["OMP_NUM_THREADS"] = "1"
         print("[anseg] OMP_NUM_THREADS=1 for the notebooks' kernels (the stored runs' setting); set it to choose",
               flush=True)
-    narrowed = [n for n in names if splits and "splits" in PER_NOTEBOOK[n][kind]]
+    narrowed = [n for n in names if splits and "splits" in PLANS[n].parameters[kind]]
     if kind == "real" and out is None and narrowed:
         print(f"[anseg] --splits {' '.join(map(str, splits))}: the committed outputs of {', '.join(narrowed)} "
               "will cover these splits alone", flush=True)
     failed = 0
     for name in names:
         # relative to the notebooks' folder (their working directory): executed notebooks name no machine's paths
-        params = {**with_choices({**COMMON[kind], **PER_NOTEBOOK[name][kind]}, config, splits),
+        params = {**with_choices({**COMMON[kind], **PLANS[name].parameters[kind]}, config, splits),
                   "output_dir": os.path.relpath(results_root, NOTEBOOKS)}
         started = time.time()
         print(f"[anseg] {name} ({kind}) ...", flush=True)
@@ -123,8 +122,9 @@ def failed_name(name: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m anseg.reproduce", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", choices=["synthetic", "real"], default="synthetic", help="which data the notebooks run on (default: synthetic)")
+    parser = argparse.ArgumentParser(prog="python -m anseg.study.reproduce", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", choices=["synthetic", "real"], default="synthetic",
+                        help="which data the notebooks run on (default: synthetic)")
     parser.add_argument("--smoke", action="store_true", help="tiny settings on synthetic data (what CI runs)")
     parser.add_argument("--only", nargs="*", help="run only the notebooks whose file name contains one of these strings")
     parser.add_argument("--out", type=Path, help="write here instead of the default folder of the run kind")

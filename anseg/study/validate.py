@@ -1,6 +1,6 @@
 """Cross-validation on TRAINING meshes: how a default is chosen (never on a test split).
 
-    python -m anseg.validate --study scale --arm default --arm "relative:local_scale=relative" \\
+    python -m anseg.study.validate --study scale --arm default --arm "relative:local_scale=relative" \\
         [--categories Hand Vase ...] [--folds 3] [--use-folds 0 1 2] [--seeds 0 1] [--workers N | --scheduler ADDRESS]
         [--ensemble]
 
@@ -22,7 +22,7 @@ the graph cut's weight, how levels are combined, test-time passes) do not
 retrain: the cell reuses the model of the same training settings, kept under ``<out>/models``
 (not committed).
 
-The report (printed, and written as CSV under ``<out>``) is :mod:`anseg.comparison`'s:
+The report (printed, and written as CSV under ``<out>``) is :mod:`anseg.study.comparison`'s:
 per arm and category the held-out accuracy, and each arm's paired
 difference from the baseline with its 95 % two-stage bootstrap interval and
 its training cost. The decision rule: adopt when the interval excludes 0 and
@@ -45,10 +45,10 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.comparison import write_ensemble_report, write_report
 from anseg.configs import NAMED, overrides
-from anseg.experiments import Experiment, ResultStore, environment
 from anseg.pipeline import SegmentConfig, Segmenter
+from anseg.study.comparison import write_ensemble_report, write_report
+from anseg.study.store import Experiment, ResultStore, environment
 from anseg.train import TrainConfig, evaluate, fit_and_time
 
 DEV_SUITE = ("Hand", "Vase", "FourLeg", "Human", "Armadillo", "Chair", "Airplane", "Bird", "Teddy")
@@ -164,7 +164,8 @@ def compute_cell(cell: Cell, root=None, model: bytes | None = None, checkpoint: 
         "split_index": cell.split_index, "segment": asdict(segment), "train": asdict(train),
         "train_meshes": [m.name for m in train_set], "held_out": [m.name for m in held_out],
         "accuracy": scores["smoothed"], "accuracy_unsmoothed": scores["unsmoothed"], "per_mesh": scores["per_mesh"],
-        "train_accuracy": fit["smoothed"], "train_per_mesh": fit["per_mesh"], "trained": trained, "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds,
+        "train_accuracy": fit["smoothed"], "train_per_mesh": fit["per_mesh"], "trained": trained,
+        "train_seconds": train_seconds, "train_cpu_seconds": train_cpu_seconds,
         "environment": environment(),
     }
     return result, (network.to_bytes() if trained else None)
@@ -175,7 +176,8 @@ def validation_store(out: str | Path) -> ResultStore:
     return ResultStore(out, results="runs")
 
 
-def study_cells(arms, categories, folds: int, use_folds, seeds, epochs=None, dataset="psb", split_index=0, options=()) -> list[Cell]:
+def study_cells(arms, categories, folds: int, use_folds, seeds,
+                epochs=None, dataset="psb", split_index=0, options=()) -> list[Cell]:
     """Every cell of a study, arm by arm inside each category (run_study trains each model once, whatever the order)."""
     return [Cell(arm, category, fold, seed, folds, epochs, dataset, split_index, tuple(sorted(dict(options).items())))
             for seed in seeds for fold in use_folds for category in categories for arm in arms]
@@ -289,7 +291,7 @@ def read_results(out: str | Path, cells: list[Cell]) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="anseg validate", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m anseg.study.validate", description=__doc__.splitlines()[0])
     parser.add_argument("--study", required=True, help="name of the study: the report goes to OUT/STUDY_*.csv")
     parser.add_argument("--arm", action="append", required=True,
                         help="NAME[:field=value,train.field=value,...]; repeat for each arm (the first is the baseline "

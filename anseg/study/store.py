@@ -1,0 +1,152 @@
+"""What an experiment is and where its result is kept.
+
+* :class:`Experiment` and its key: one trained-and-evaluated configuration,
+  keyed by everything that decides its result.
+* :class:`ResultStore`: ``<root>/results/runs/<key>.json`` and
+  ``<root>/models/<key>.pt``, written atomically by the process that asked
+  for the run (never by a worker, so workers need no file system shared
+  with it), with a resumable checkpoint beside the model while training.
+* :func:`environment`: what every stored result records of the machine and the code.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from anseg import features
+from anseg.cache import atomic_write
+from anseg.pipeline import SegmentConfig
+from anseg.train import TrainConfig
+
+REPO = Path(__file__).resolve().parents[2]
+
+# Fields of SegmentConfig ("segment") and TrainConfig ("train") introduced after results were stored, with
+# the value the older results ran with: at that value a field stays out of the key.
+SETTINGS_ADDED_LATER = {
+    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
+                "concave_discount": 3.0, "passes": 1},
+    "train": {"embed_norm": False, "schedule": "constant", "coarse_context": False, "detach_share": False,
+              "average_last": 0, "position_pairs": 0, "diffusion_blocks": 0,
+              "heat_bias_pairs": 0},
+}
+# The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
+# from other features has other keys, so no stored result or model is reused across a change of features.
+FEATURES_OF_STORED_RESULTS = {"version": 1, "sdf_rays": 16, "sdf_cone_degrees": 120.0, "agd_sources": 64,
+                              "smooth_radii": (0.03, 0.1, 0.3)}
+
+
+@dataclass
+class Experiment:
+    """One trained-and-evaluated configuration: what a table cell is made of."""
+
+    dataset: str
+    category: str | None
+    split_index: int = 0
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+
+    def key(self, dataset_options: dict | None = None) -> str:
+        """A short hash of everything that decides the result, data set options (e.g. ``n_shapes``) included.
+
+        Settings added after results were stored leave the key alone at their
+        default (:data:`SETTINGS_ADDED_LATER`), so those results keep their keys;
+        so does the feature code they ran with (:data:`FEATURES_OF_STORED_RESULTS`).
+        """
+        keyed = {part: {k: v for k, v in asdict(config).items() if SETTINGS_ADDED_LATER[part].get(k, object()) != v}
+                 for part, config in (("segment", self.segment), ("train", self.train))}
+        if (code := features.code()) != FEATURES_OF_STORED_RESULTS:
+            keyed["features"] = code
+        text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
+                           **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def environment() -> dict:
+    """Versions, hardware (and the torch threads a replay needs), the code revision, the features' fingerprint and the
+    date (UTC), kept with every result."""
+    from datetime import datetime, timezone
+
+    import sklearn
+    import trimesh
+
+    return {
+        "python": platform.python_version(), "torch": torch.__version__, "numpy": np.__version__,
+        "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
+        "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
+        "torch_kernels": torch.backends.cpu.get_cpu_capability(),  # another instruction set rounds otherwise
+        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+        **code_revision(), "features": features.fingerprint(),
+        "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def code_revision(root: Path = REPO) -> dict:
+    """The git commit the package runs from and whether its code differs from it (None for both outside a checkout).
+
+    ``code_clean`` looks at the tracked files of the package and its build
+    file only: a study writes its results into the same checkout, and those
+    writes change no code.
+    """
+    import subprocess
+
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=30)
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
+
+    revision = git("rev-parse", "HEAD")
+    changes = git("status", "--porcelain", "--untracked-files=no", "--", "anseg", "pyproject.toml") if revision else None
+    return {"code_revision": revision, "code_clean": None if changes is None else not changes}
+
+
+def trained_on(result: dict) -> str:
+    """The machine a stored result was trained on: its GPU, else its CPU count (a notebook may read results made elsewhere)."""
+    env = result["environment"]
+    return env["cuda"] or f"CPU, {env['cpus']} cores"
+
+
+class ResultStore:
+    """Results (under ``results``, relative to the root) and models (under ``models``); every write is atomic."""
+
+    def __init__(self, root: str | os.PathLike, results: str = "results/runs"):
+        self.root = Path(root)
+        self.results = self.root / results
+
+    def result_path(self, key: str) -> Path:
+        return self.results / f"{key}.json"
+
+    def model_path(self, key: str) -> Path:
+        return self.root / "models" / f"{key}.pt"
+
+    def checkpoint_path(self, key: str) -> Path:
+        return self.model_path(key).with_suffix(".ckpt")
+
+    def get(self, key: str) -> dict | None:
+        """The stored result of ``key``, or None."""
+        path = self.result_path(key)
+        return json.loads(path.read_text()) if path.is_file() else None
+
+    def put(self, result: dict, model: bytes | None = None, model_key: str | None = None) -> dict:
+        """Store a result and its model file's bytes (under ``model_key``, default the result's key).
+
+        The model goes first, so a stored result always has its model.
+        """
+        model_key = model_key or result["key"]
+        if model is not None:
+            atomic_write(self.model_path(model_key), lambda tmp: tmp.write_bytes(model))
+            self.checkpoint_path(model_key).unlink(missing_ok=True)
+        text = json.dumps(result, indent=1)
+        atomic_write(self.result_path(result["key"]), lambda tmp: tmp.write_text(text))
+        return json.loads(text)  # the form a stored result is read back in
+
