@@ -33,6 +33,8 @@ from anseg.mesh import Mesh
 DEFAULT_K = 16
 DEFAULT_PATCH_SIZE = 32
 CURVES = ("hilbert", "morton")
+# the frame the ordering curve runs in: the coordinates as given, or the surface's own principal axes
+FRAMES = ("xyz", "principal")
 # 16 bits per axis: 65536 cells along the longest side, far finer than any mesh we segment
 CURVE_BITS = 16
 
@@ -165,12 +167,7 @@ def sequence(mesh_or_centroids, cluster_labels, curve: str = "hilbert") -> np.nd
         return np.zeros(0, dtype=np.int64)
     labels = np.unique(labels, return_inverse=True)[1]  # compact, so that label values can be sparse
 
-    low = centroids.min(axis=0)
-    side = float((centroids.max(axis=0) - low).max())
-    n_cells = 1 << CURVE_BITS
-    cells = np.floor((centroids - low) * (n_cells / side if side > 0 else 0.0))
-    keys = curve_keys(np.clip(cells, 0, n_cells - 1).astype(np.int64), CURVE_BITS, curve)
-
+    keys = _curve_position(centroids, curve)
     rank = np.empty(len(keys), dtype=np.float64)
     rank[np.argsort(keys, kind="stable")] = np.arange(len(keys))
     n_clusters = labels.max() + 1
@@ -287,12 +284,54 @@ def layout(
     patch_size: int = DEFAULT_PATCH_SIZE,
     seed: int = 0,
     curve: str = "hilbert",
+    frame: str = "xyz",
 ) -> PatchLayout:
-    """Cluster the faces of ``mesh`` on ``features`` (F, D), order them and cut the sequence into patches."""
+    """Cluster the faces of ``mesh`` on ``features`` (F, D), order them and cut the sequence into patches.
+
+    ``frame="principal"`` makes the layout independent of the pose and of the
+    file's face order: the curve runs in :func:`principal_frame`, and K-means
+    sees the faces in their order along that curve (its seeding follows the
+    order of the rows), the labels then put back in the mesh's order.
+    """
     if len(features) != mesh.n_faces:
         raise ValueError(f"features must have one row per face ({mesh.n_faces}), got {len(features)}")
-    labels = cluster_faces(features, k=k, seed=seed)
-    return patches(sequence(mesh, labels, curve=curve), labels, patch_size)
+    if frame not in FRAMES:
+        raise ValueError(f"frame must be one of {FRAMES}, got {frame!r}")
+    if frame == "xyz":
+        labels = cluster_faces(features, k=k, seed=seed)
+        return patches(sequence(mesh, labels, curve=curve), labels, patch_size)
+    centroids = principal_frame(mesh.face_centroids, mesh.face_areas)
+    canonical = np.lexsort((np.arange(mesh.n_faces), _curve_position(centroids, curve)))
+    labels = np.empty(mesh.n_faces, dtype=np.int64)
+    labels[canonical] = cluster_faces(np.asarray(features)[canonical], k=k, seed=seed)
+    return patches(sequence(centroids, labels, curve=curve), labels, patch_size)
+
+
+def principal_frame(centroids, areas) -> np.ndarray:
+    """Face centroids (F, 3) in the surface's own frame: a pose that the mesh's placement does not change.
+
+    Centred on the area-weighted mean and rotated onto the principal axes of
+    the area-weighted covariance, longest first; each axis points where the
+    area-weighted third moment along it is positive. A rotated, moved,
+    scaled or mirrored mesh lands on the same coordinates (up to the scale,
+    which the curve's quantisation divides out). Where two principal axes are
+    equal, or a shape is symmetric along one, rounding picks the direction.
+    """
+    weights = np.asarray(areas, dtype=np.float64) / np.sum(areas)
+    centred = np.asarray(centroids, dtype=np.float64) - weights @ centroids
+    _, axes = np.linalg.eigh((centred * weights[:, None]).T @ centred)
+    coordinates = centred @ axes[:, ::-1]
+    return coordinates * np.where(weights @ coordinates**3 < 0, -1.0, 1.0)
+
+
+def _curve_position(centroids: np.ndarray, curve: str) -> np.ndarray:
+    """Each centroid's key along the curve, quantised on the cube around their bounding box (one step for every axis,
+    so that curve distance follows true distance)."""
+    low = centroids.min(axis=0)
+    side = float((centroids.max(axis=0) - low).max())
+    n_cells = 1 << CURVE_BITS
+    cells = np.floor((centroids - low) * (n_cells / side if side > 0 else 0.0))
+    return curve_keys(np.clip(cells, 0, n_cells - 1).astype(np.int64), CURVE_BITS, curve)
 
 
 def _check_labels(cluster_labels, n_faces: int) -> np.ndarray:

@@ -57,7 +57,7 @@ import torch
 
 from anseg import collapse, features
 from anseg.cache import atomic_write
-from anseg.cluster import PatchLayout, layout
+from anseg.cluster import FRAMES, PatchLayout, layout
 from anseg.geometry import spectral
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
@@ -89,6 +89,9 @@ class SegmentConfig:
     K-means starts and collapse seeds (so other tokens and another
     hierarchy), and averages their class probabilities before the graph cut:
     a test-time ensemble of one trained model, at a pass's cost each.
+    ``layout_frame`` is the frame of the token order (:func:`anseg.cluster.layout`):
+    the coordinates as given, or the surface's principal axes, which do not
+    depend on the pose or on the file's face order.
     """
 
     cycles: int = 4
@@ -105,6 +108,7 @@ class SegmentConfig:
     priority: str = "weighted"
     density_range: float = 8.0
     passes: int = 1
+    layout_frame: str = "xyz"
     seed: int = 0
 
     def __post_init__(self):
@@ -127,6 +131,8 @@ class SegmentConfig:
             raise ValueError(f"cycles must be >= 0, got {self.cycles}")
         if self.passes < 1:
             raise ValueError(f"passes must be >= 1, got {self.passes}")
+        if self.layout_frame not in FRAMES:
+            raise ValueError(f"layout_frame must be one of {FRAMES}, got {self.layout_frame!r}")
         self.groups = tuple(self.groups)
 
     @property
@@ -312,7 +318,8 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
             patches = first_layout
         else:
             x = np.concatenate(list(input_groups(current_groups, config.local_scale).values()), axis=1)
-            patches = layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed)
+            patches = layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed,
+                             frame=config.layout_frame)
         level = Level(current, current_groups, patches, spectrum=current_spectrum)
         levels.append(level)
         if index == config.n_levels - 1:

@@ -227,3 +227,48 @@ def test_small_patch_counts_by_hand():
     assert lay.mask.tolist() == [[True, True], [True, True], [True, False], [True, True]]
     assert lay.patch_of_face.tolist() == [3, 3, 0, 0, 1, 1, 2]
     assert lay.slot_of_face.tolist() == [0, 1, 0, 1, 0, 1, 0]
+
+
+def bumpy_blob() -> tuple[Mesh, np.ndarray]:
+    """A stretched, skewed, bumpy sphere with per-face features that move with the faces (no symmetry to tie on)."""
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=3)
+    v = ball.vertices * [2.0, 1.0, 0.6]
+    v = v + 0.15 * v[:, :1] ** 2 + 0.05 * np.sin(5 * v)
+    mesh = Mesh(v, ball.faces)
+    features = np.stack([mesh.face_areas, np.linalg.norm(mesh.face_centroids - mesh.face_centroids.mean(0), axis=1)], 1)
+    return mesh, features
+
+
+def same_layout(a, b, b_face_of_a: np.ndarray) -> bool:
+    """The same clusters and the same patches, face for face, after ``b``'s faces are matched to ``a``'s."""
+    patch_a, patch_b = a.patch_of_face, b.patch_of_face[b_face_of_a]
+    slot_a, slot_b = a.slot_of_face, b.slot_of_face[b_face_of_a]
+    return np.array_equal(patch_a, patch_b) and np.array_equal(slot_a, slot_b)
+
+
+@pytest.mark.parametrize("transform", ["rotation", "scale and shift", "face order", "mirror"])
+def test_the_principal_frame_layout_does_not_depend_on_the_pose_or_the_face_order(transform):
+    from scipy.spatial.transform import Rotation
+
+    mesh, features = bumpy_blob()
+    faces, order = mesh.faces, np.arange(mesh.n_faces)
+    vertices = mesh.vertices
+    if transform == "rotation":
+        vertices = vertices @ Rotation.random(random_state=3).as_matrix().T
+    elif transform == "scale and shift":
+        vertices = 1000 * vertices + [5e3, -2e3, 7e3]
+    elif transform == "face order":
+        order = np.random.default_rng(4).permutation(mesh.n_faces)
+        faces = faces[order]
+    else:
+        vertices = vertices * [-1, 1, 1]
+        faces = faces[:, ::-1]
+    moved = Mesh(vertices, faces)
+    here = layout(mesh, features, k=6, patch_size=16, frame="principal")
+    there = layout(moved, features[order], k=6, patch_size=16, frame="principal")
+    assert same_layout(here, there, np.argsort(order))
+    if transform != "scale and shift":  # the coordinates' own frame moves with the mesh
+        assert not same_layout(layout(mesh, features, k=6, patch_size=16),
+                               layout(moved, features[order], k=6, patch_size=16), np.argsort(order))

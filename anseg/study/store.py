@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parents[2]
 # the value the older results ran with: at that value a field stays out of the key.
 SETTINGS_ADDED_LATER = {
     "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
-                "concave_discount": 3.0, "passes": 1},
+                "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz"},
     "train": {"embed_norm": False, "schedule": "constant", "coarse_context": False, "detach_share": False,
               "average_last": 0, "position_pairs": 0, "diffusion_blocks": 0,
               "heat_bias_pairs": 0},
