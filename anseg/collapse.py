@@ -1,69 +1,25 @@
 """Edge-collapse downsampling and its exact record (chains of records, pooling and upsampling: :mod:`anseg.hierarchy`).
 
-The paper's attentive edge collapse (section III-B, Fig. 3): take the alive
-face with the least score, pick its edge-adjacent face with the least score,
-collapse their shared edge to its midpoint (both faces vanish, the faces
-around the removed vertex are re-pointed to the kept one, which moves to the
-midpoint) and repeat until ``round(ratio * faces in)`` faces are left.
+The paper's attentive edge collapse (section III-B, Fig. 3): take the alive face with the least
+score, collapse the edge it shares with its least-score neighbour to the midpoint (both faces
+vanish) and repeat until ``round(ratio * faces in)`` faces are left (or one more). Where the paper is silent:
 
-Rules this module fixes where the paper is silent:
+* **Valid collapses only**, so the coarse mesh stays a sound surface: the link condition (no closed
+  component below four faces), no normal turning past ``max_normal_flip_deg``, no face pushed below
+  ``MIN_FACE_QUALITY``. Only edges shared by two faces collapse (the paper's rule): boundaries stay.
+* **Selection** (``nonuniform``): one walk over the faces by rising score (ties by face index),
+  each trying its neighbours by rising score; faces keep their score. Passes repeat while they
+  make progress; one without progress stops with a ``CollapseWarning`` and ``reached_target = False``.
+* ``uniform``: shortest edge first (a lazily updated heap), which evens out edge lengths: the
+  attention-free baseline. ``priority="weighted"``: the same heap keyed by squared length times the
+  face's score, so a low-score region thins out to edge lengths of about 1/sqrt(score) instead of
+  merging into a few giant faces; the paper's ``"score"`` walk is the default. ``random``: a control.
 
-* **Valid collapses only.** An edge ``uw`` between faces ``uwc`` and ``wud``
-  is collapsed only if (1) the link condition holds: ``u`` and ``w`` have
-  exactly ``c`` and ``d`` as common neighbours, not both lie on the boundary,
-  and faces ``ucd`` and ``wcd`` do not both exist (that would collapse a
-  tetrahedron, so no closed component drops below four faces); (2) no face
-  around the edge turns its normal by more than ``max_normal_flip_deg``
-  (default 60 degrees; measured on PSB Teddy, Airplane and Human, 4 cycles
-  with random scores: the RMS distance of the input vertices to the coarse
-  surface grows from 30 to 150 degrees by about a third, 60 and 90 lie close
-  together, and the label round trip moves by under a point); (3) no face
-  becomes degenerate: its quality ``2 * area / longest_edge**2`` may not fall
-  below ``MIN_FACE_QUALITY`` unless it was already lower, and never to zero.
-  Only edges shared by two faces are collapsed (that is the paper's rule),
-  so boundary edges stay: a component with B boundary vertices keeps at
-  least about B - 2 faces. The PSB, COSEG and human meshes are closed.
-* **Selection.** ``nonuniform`` walks the faces once in order of rising score
-  (ties by face index); a face still alive when its turn comes tries its
-  edge neighbours in order of rising score and collapses with the first one
-  that is valid, or is skipped. Faces keep their score as the mesh changes.
-  If a pass ends above the target and made progress, another pass follows;
-  a pass without progress stops the loop with a ``CollapseWarning`` and
-  ``record.reached_target = False``. Each collapse removes two faces, so the
-  result lands on the target or one face above it.
-* ``uniform`` is the same engine with an attention-free priority: shortest
-  edge first, edge lengths kept current with a lazily updated heap (entries
-  made stale by a moving vertex are skipped). Collapsing the shortest edge
-  evens out edge lengths, so the mesh thins out roughly uniformly over the
-  surface, the classic attention-free baseline (libigl's ``decimate`` uses
-  the same cost and placement).
-* ``weighted`` (``priority="weighted"`` of ``nonuniform``) reads the
-  collapse as importance-weighted decimation: the same heap as ``uniform``,
-  keyed by an edge's squared length times the score of the face it belongs
-  to (each edge is queued once from each of its two faces, so its smaller
-  score counts first). Edges in low-score regions go first, but as they
-  grow their keys grow too, so a region thins out to edge lengths of about
-  1/sqrt(score) instead of being merged again and again into a few giant
-  faces; a flat score gives back the uniform collapse exactly. The
-  paper's walk in score order (``priority="score"``) is the default.
-* ``random`` uses static random scores drawn from ``seed``: a control.
-
-The :class:`CollapseRecord` stores every collapse: the kept and removed
-vertex, the two removed faces with their vertices, the corners re-pointed
-from the removed vertex to the kept one, the old positions and the faces
-across the removed faces' outer edges. Undoing the collapses in reverse
-(vertex splits) gives back the input mesh exactly (:meth:`CollapseRecord.replay`),
-maps every input face to the coarse face that stands for it
-(:attr:`CollapseRecord.fine_to_coarse`) and carries class probabilities back
-to the input faces (:func:`upsample`): a face that reappears in a split takes
-the normalised sum of the probabilities of the faces across its two outer
-edges at that moment (the paper's vote among surrounding faces; its twin,
-which reappears in the same split, does not vote).
-
-The loops run in numba over flat arrays: faces (F, 3) keep their row for
-life (dead rows are flagged, not removed); each vertex holds a singly linked
-list of its face corners (corner ``3 * f + k`` is ``faces[f, k]``), spliced
-onto the kept vertex's list when two vertices merge.
+The :class:`CollapseRecord` stores every collapse, so undoing them in reverse gives back the input
+mesh exactly (:meth:`CollapseRecord.replay`), maps every input face to its coarse face
+(:attr:`CollapseRecord.fine_to_coarse`) and carries probabilities back (:func:`upsample`: a face
+that reappears takes the normalised sum of the faces across its two outer edges, the paper's vote).
+The loops run in numba over flat arrays. Why the flip limit defaults to 60 degrees: ``docs/decisions.md``.
 """
 
 from __future__ import annotations
@@ -77,13 +33,13 @@ from numba import njit
 
 from anseg.mesh import Mesh, MeshError
 
-# how a collapse picks its edges (the engine's modes; "random" is a control)
+# how a collapse picks its edges (the engine's modes; "random" is a control), and the nonuniform mode's orders
 COLLAPSE_MODES = ("nonuniform", "uniform", "random")
 PRIORITIES = ("score", "weighted")
 MIN_FACE_QUALITY = 1e-3
-_NO_BOUNDARY_RINGS = 1e6  # rings assigned when a mesh has a single label
 """A collapse may not push a face's ``2 * area / longest_edge**2`` below this
 (equilateral: 0.87), unless the face was already worse before the collapse."""
+_NO_BOUNDARY_RINGS = 1e6  # rings assigned when a mesh has a single label
 
 
 class CollapseWarning(UserWarning):
@@ -198,6 +154,11 @@ def _moved_face_ok(vertices, faces, h, v, tx, ty, tz, cos_max, min_quality):
 def _collapse_allowed(vertices, faces, alive, head, nxt, mark_u, mark_w, stamp, f, g, u, w, c, d, cos_max, min_quality):
     """Check the link condition, boundary, tetrahedron, normal-flip and degeneracy rules.
 
+    Edge ``uw`` between faces ``uwc`` and ``wud`` may collapse only if ``u`` and
+    ``w`` have exactly ``c`` and ``d`` as common neighbours, not both lie on the
+    boundary, faces ``ucd`` and ``wcd`` do not both exist (a tetrahedron), no
+    moved face turns its normal past ``cos_max`` and no moved face's quality
+    falls below ``min_quality`` unless it already was lower (never to zero).
     Returns (allowed, faces around u, faces around w).
     """
     deg_u = 0
@@ -692,7 +653,7 @@ def downsample(mesh: Mesh, scores=None, ratio: float = 0.5, mode: str = "nonunif
     ``mode``: ``"nonuniform"`` (least ``scores`` first, the paper's attentive
     rule; ``scores`` (F,) finite, required), ``"uniform"`` (shortest edge
     first) or ``"random"`` (static random scores from ``seed``). See the
-    module docstring for the validity rules. When no valid collapse is left
+    module docstring (in full: ``_collapse_allowed``) for the validity rules. When no valid collapse is left
     before the target, a :class:`CollapseWarning` is issued and
     ``record.reached_target`` is False. ``once_per_pass`` (score-ordered
     modes): a face that a collapse changed (one around the kept vertex) takes

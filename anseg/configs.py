@@ -2,42 +2,20 @@
 
 * ``default``: the project's reading, :class:`SegmentConfig` and
   :class:`TrainConfig` as they are; every default there is chosen by
-  cross-validation on training meshes (:mod:`anseg.study.validate`): relative
-  local scale, weighted collapse with a density range of 8, the ``hks``
-  features, weights averaged over the last 20 epochs, graph-cut weight 2.
+  cross-validation on training meshes (:mod:`anseg.study.validate`).
 * ``v1``: the defaults before that validation, with which the committed
   tables (``results/runs``) were trained; its experiments keep their keys.
 * ``fast``: the default with patches of 32 faces (half the tokens) and the
   hierarchy rebuilt every 10 epochs instead of 5, for studies and users
-  that need cheaper training; on the validation protocol (the 9
-  development categories) it scores -0.17 points [-0.69, +0.40] against the
-  default on fold 0 with seeds 0 and 1 (study ``speed-p32-r10``) and -0.20
-  [-0.78, +0.28] on all three folds with seed 0 (``speed-p32-r10-folds012``;
-  fold 1 alone -0.45, Hand -3.9; fold 2 -0.17); with seed 1 on folds 0 and 1
-  as well, -0.33 [-0.69, +0.01] (``speed-p32-r10-all``, 45 cells; fold 1 with
-  seed 1 alone -0.87, Human -3.1, Vase -2.7). That is below the default, at
-  the edge of its spread of the suite mean from seed to seed (0.39 on fold
-  0, 0.17 over folds 0 and 1), and its training
-  (gradient steps and rebuilds) costs 1.87x less on PSB Human split 0 and
-  2.22x less on Teddy than the default did with the code of 7cf4810
-  (``benchmarks/train.py --set patch_size=32,train.recollapse_every=10
-  --reference 7cf4810 --reference-set ""``).
-* ``paper``: the plain reading of the paper. The features of Algorithm 1,
-  line 1 (edge-encoded vector, inner angles, edge-length ratios, GC, SDF,
-  AGD; no multi-scale ``smooth`` group), labels from the coarsest level, the
-  attention trained through the class loss alone (``attention_weight=0``),
-  the collapse in score order, and every switch this project added off.
-  Two things the paper's text leaves open were chosen on held-out training
-  meshes (PSB split 0, fold 0 of 3, seed 0, Ant, Airplane and Human;
-  ``results/validation/paper-readings_*.csv``): the edge lengths are read
-  relative to each level's median edge (``local_scale="relative"``; scaled
-  with the unit-area input mesh they grow level by level, thousands of
-  standard deviations outside what the network was fitted on at the coarse
-  levels), and a face changed by a collapse waits for the next pass
-  (``once_per_pass``; otherwise one low-attention face can swallow a whole
-  region in one pass). Held-out mean 84.18 against 48.49 for the first
-  reading (unit area, no such wait), +35.69 [+28.61, +44.96]; the runs of
-  that first reading are kept in ``results/superseded/``.
+  that need cheaper training at a small cost in held-out accuracy.
+* ``paper``: the plain reading of the paper: the features of Algorithm 1, line 1 (no ``smooth``
+  group), labels from the coarsest level, attention trained through the class loss alone
+  (``attention_weight=0``), the collapse in score order, every switch this project added off.
+  What the text leaves open was chosen on held-out training meshes: edge lengths read against
+  each level's median edge (``local_scale="relative"``, so coarse levels stay inside what the
+  network was fitted on) and ``once_per_pass`` (one low-attention face cannot swallow a region).
+
+What ``fast`` costs and saves, and how ``paper``'s readings were chosen: ``docs/decisions.md``.
 
 ``configuration("paper", "combine=all,train.width=128")`` gives the pair with
 overrides on top; the same names and override syntax serve the CLI

@@ -1,75 +1,25 @@
 """Per-face descriptors (Algorithm 1, line 1; section III-A) and their on-disk cache.
 
-Every group is computed on a copy of the mesh scaled to unit total area and
-centred (:meth:`Mesh.normalized`), so all of them are scale invariant by
-construction, and all of them are rotation invariant (the SDF ray pattern is
-laid out in a frame built from each face's own edges). Groups and their
-columns (see :func:`feature_names`):
+Every group is computed on a copy of the mesh scaled to unit total area and centred
+(:meth:`Mesh.normalized`), so all are scale invariant, and all are rotation invariant (the SDF
+rays are laid out in each face's own frame). Nothing is random, so results are deterministic.
+Groups (columns: :func:`feature_names`; each group function's docstring gives its formulas):
+``edge`` the paper's edge-encoded vector of the three lengths; ``angles`` the sorted inner angles;
+``ratios`` the sorted lengths' ratios; ``gc`` Gaussian curvature, signed-log and signed rank;
+``sdf`` the Shape Diameter Function (:mod:`anseg.geometry.sdf`); ``agd`` the Average Geodesic
+Distance (:mod:`anseg.geometry.geodesic`); optional ``smooth``, those three diffused at a few
+radii (:mod:`anseg.geometry.diffusion`) so a face sees its wide neighbourhood; optional ``hks``,
+the Heat Kernel Signature at fixed times, which says where a face sits on the whole shape.
 
-``edge``    the paper's edge-encoded vector (a+b+c, ab+bc+ca, abc) of the
-            three edge lengths; unchanged when the edges are reordered. On
-            the unit-area mesh lengths go as 1/sqrt(faces), so these also
-            tell a coarse level from a fine one.
-``angles``  the three inner angles (radians), sorted ascending.
-``ratios``  edge-length ratios of the sorted lengths a <= b <= c: a/b, b/c, a/c.
-``gc``      Gaussian curvature: angle defect over the mixed Voronoi vertex
-            area, averaged over the face's interior vertices (a boundary
-            vertex's defect is boundary turning, not curvature, so it is left
-            out). Two transforms so that spikes do not dominate:
-            ``gc_slog`` = sign(K) log(1 + |K|) and ``gc_rank``, the signed
-            rank (positive K ranked among positives into (0, 1], negative
-            among negatives into [-1, 0), flat faces 0).
-``sdf``     Shape Diameter Function (Shapira et al. 2008; :mod:`anseg.geometry.sdf`):
-            the cosine-weighted mean length of the rays cast from each face's
-            centroid over a cone (120 degrees) around the inward normal.
-            Normals are taken outward (flipped when the signed volume is
-            negative). ``sdf`` is the absolute value, ``sdf_lognorm``
-            Shapira's log-normalisation log(1 + 4 s) / log 5 of the per-mesh
-            robust (1st-99th percentile) min-max scaled value s.
-``agd``     Average Geodesic Distance (:mod:`anseg.geometry.geodesic`): the
-            area-weighted mean heat-method distance to the rest of the shape.
-            ``agd`` is the absolute value, ``agd_rel`` = (agd - min) /
-            (max - min) per mesh: 0 at the geodesic centre, 1 at the farthest
-            extremity.
-``smooth``  (optional, not in :data:`DEFAULT_GROUPS`) ``sdf``, ``gc_slog``
-            and ``agd`` diffused over the surface at a few geodesic radii
-            (:mod:`anseg.geometry.diffusion`), so a face sees its wide neighbourhood.
-            Cheap once its inputs exist (about 0.15 s on 25K faces); a per-face
-            gradient-boosting probe on PSB split 0 gained 2 to 6 points of
-            accuracy with it (Teddy, Airplane, Human, Chair).
-``hks``     (optional) the Heat Kernel Signature (Sun, Ovsjanikov and
-            Guibas 2009) from the first :data:`HKS_EIGENPAIRS` eigenpairs of
-            the cotan Laplacian (Voronoi masses) of the unit-area mesh, at
-            the fixed diffusion times :data:`HKS_TIMES`, each divided by its
-            heat trace (the mean over the surface of that time's signature)
-            and logged: log(hks(x, t) / sum_i exp(-lambda_i t)). Intrinsic, so
-            unchanged by the pose and by the inconsistent orientations of
-            PSB, and it says where a face sits on the whole shape (a tip, a
-            junction, a trunk), which local descriptors cannot. Fixed times
-            on unit-area meshes make the columns comparable across meshes.
+No per-mesh z-score: absolute values on the unit-area mesh say how thick, curved or far out a face is
+relative to its whole shape, which compares across a category's meshes; each shape descriptor also has
+a per-mesh relative column, robust to other proportions. Standardising is the model's job (training set).
 
-Normalisation, and why there is no per-mesh z-score: the absolute values on
-the unit-area mesh (``edge``, ``gc_slog``, ``sdf``, ``agd``) say how thick,
-how curved or how far out a face is relative to the size of its whole shape,
-and that is comparable across the meshes of a category (a z-score per mesh
-would erase the difference between a thin limb and a fat torso of another
-mesh). Each shape descriptor also has one per-mesh relative column
-(``gc_rank``, ``sdf_lognorm``, ``agd_rel``) that is robust to shapes whose
-proportions differ. Standardising columns for a model is the consumer's job,
-over its training set.
-
-Nothing here is random: the SDF ray pattern and the AGD sources are fixed
-functions of the geometry, so results are deterministic.
-
-Meshes above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces (scans, CAD; no benchmark mesh
-is that large) take faster paths, so that 300K faces cost seconds, not
-minutes: the SDF rays are cast by embree, and the AGD, the HKS and the
-``smooth`` group's diffusion are computed on one uniform collapse of the
-mesh (:class:`_Geometry`); their cache entries are keyed apart.
-
-:data:`LOCAL_GROUPS` are cheap and recomputed on every coarse mesh;
-:data:`GLOBAL_GROUPS` describe the original shape and are pooled from the
-original faces on coarse levels (the pipeline does that pooling).
+Meshes above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces (scans, CAD; no benchmark mesh)
+take faster paths: embree casts the SDF rays, and the AGD, the HKS and the ``smooth`` diffusion
+are computed on one uniform collapse of the mesh (:class:`_Geometry`), keyed apart in the cache.
+:data:`LOCAL_GROUPS` are cheap and recomputed on every coarse mesh; :data:`GLOBAL_GROUPS` describe
+the original shape and are pooled from its faces on coarse levels. Measurements: ``docs/decisions.md``.
 """
 
 from __future__ import annotations
@@ -132,7 +82,6 @@ _SMOOTHED = ("sdf", "gc_slog", "agd")
 
 # |angle defect| below this (radians) counts as flat: keeps round-off from deciding signed ranks
 _FLAT_DEFECT = 1e-9
-# SDF rays start this far inside the surface (unit-area units), off their own face's plane
 PROGRESS_MIN_FACES = 100_000  # a single mesh shows a progress bar from this size (tens of seconds of work)
 POOL_MIN_FACES = 50_000  # compute_many works in-process below this many faces in all (about a second of work)
 
@@ -146,11 +95,9 @@ def _threads_allowed() -> int:
 class FeatureSettings:
     """Knobs of the descriptors; ``compute(..., **settings)`` takes these names.
 
-    Defaults measured on a 25K-face PSB Teddy (``benchmarks/features.py
-    --studies``): ``agd_sources`` 64 keeps the AGD within 0.25 % (mean; 0.9 %
-    worst face) of a 1024-source reference at a third of the cost of 256;
-    ``sdf_rays`` 16 gives a median error of 2.4 % (correlation 0.991) against
-    128 rays, 24 rays 1.6 % for 40 % more time.
+    The ray and source counts trade accuracy against time: the defaults keep
+    the SDF and the AGD close to a dense reference at a fraction of its cost
+    (``benchmarks/features.py --studies``; the figures: ``docs/decisions.md``).
     """
 
     sdf_rays: int = 16
@@ -303,14 +250,12 @@ class _Geometry:
     def agd(self) -> np.ndarray:
         """Per-face AGD; above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces, that of the face's face on the :attr:`proxy`.
 
-        The heat method's factorisation grows faster than the mesh (24 s of a
-        330K-face sphere's 57 s of features). AGD is smooth over the surface,
-        and the heat method's own error scales with the edge length, so the
-        values of a collapse to :data:`anseg.geometry.proxy.PROXY_FACES` faces are as close to
-        those of the benchmark meshes the models learn from (up to 56K faces)
-        as the full mesh's: on PSB Human/6 subdivided to 323K faces, the
-        proxy's AGD has a correlation of 0.998 with the full mesh's and a
-        median relative difference of 3.7 %, for 2.7 s instead of 9.1 s.
+        The heat method's factorisation grows faster than the mesh. AGD is
+        smooth over the surface, and the heat method's own error scales with
+        the edge length, so the values of a collapse to
+        :data:`anseg.geometry.proxy.PROXY_FACES` faces are as close to those of
+        the benchmark meshes the models learn from as the full mesh's, at a
+        fraction of the time (measured: ``docs/decisions.md``).
         Meshes at or below the threshold are computed as they always were.
         """
         if self.mesh.n_faces > proxy.LARGE_MESH_FACES:
@@ -325,11 +270,10 @@ class _Geometry:
 
         The shift-invert eigensolve factorises the Laplacian and its cost
         grows faster than the mesh, while the lowest :data:`HKS_EIGENPAIRS`
-        eigenfunctions are smooth: on PSB Human/10 subdivided to 304K faces
-        the proxy's columns correlate with the full mesh's at 0.91-0.92 for
-        the two shortest times (detail finer than a proxy face) and 0.95-0.99
-        for the others, for the eigensolve of a 50K-face mesh (2.5 s)
-        instead of 22 s. The AGD shares the proxy, so its collapse is paid once.
+        eigenfunctions are smooth, so the proxy's columns follow the full
+        mesh's, least closely at the shortest times (detail finer than a proxy
+        face), for a much smaller eigensolve (measured: ``docs/decisions.md``).
+        The AGD shares the proxy, so its collapse is paid once.
         """
         if self.mesh.n_faces > proxy.LARGE_MESH_FACES:
             coarse, face_of = self.proxy
@@ -340,24 +284,48 @@ class _Geometry:
 
 # ------------------------------------------------------------------- groups
 def _edge(g: _Geometry) -> np.ndarray:
+    """The paper's edge-encoded vector (a+b+c, ab+bc+ca, abc) of the three edge lengths.
+
+    Unchanged when the edges are reordered. On the unit-area mesh lengths go
+    as 1/sqrt(faces), so these also tell a coarse level from a fine one.
+    """
     a, b, c = g.sorted_lengths.T
     return np.stack([a + b + c, a * b + b * c + c * a, a * b * c], axis=1)
 
 
 def _angles(g: _Geometry) -> np.ndarray:
+    """The three inner angles (radians), sorted ascending."""
     return np.sort(g.corner_angles, axis=1)
 
 
 def _ratios(g: _Geometry) -> np.ndarray:
+    """Edge-length ratios of the sorted lengths a <= b <= c: a/b, b/c, a/c."""
     a, b, c = g.sorted_lengths.T
     return np.stack([a / b, b / c, a / c], axis=1)
 
 
 def _gc(g: _Geometry) -> np.ndarray:
+    """Gaussian curvature K: angle defect over the mixed Voronoi vertex area, averaged over the face's interior vertices.
+
+    A boundary vertex's defect is boundary turning, not curvature, so it is
+    left out. Two transforms so that spikes do not dominate: ``gc_slog`` =
+    sign(K) log(1 + |K|) and ``gc_rank``, the signed rank (positive K ranked
+    among positives into (0, 1], negative among negatives into [-1, 0), flat
+    faces 0).
+    """
     return np.stack([g.gc_slog, _signed_rank(g.face_gaussian_curvature)], axis=1)
 
 
 def _sdf(g: _Geometry) -> np.ndarray:
+    """Shape Diameter Function (Shapira et al. 2008; :mod:`anseg.geometry.sdf`).
+
+    The cosine-weighted mean length of the rays cast from each face's
+    centroid over a cone (``sdf_cone_degrees``) around the inward normal;
+    normals are taken outward (flipped when the signed volume is negative).
+    ``sdf`` is the absolute value, ``sdf_lognorm`` Shapira's log-normalisation
+    log(1 + 4 s) / log 5 of the per-mesh robust (1st-99th percentile) min-max
+    scaled value s.
+    """
     s = g.sdf
     low, high = np.percentile(s, [1.0, 99.0])
     scaled = np.clip((s - low) / (high - low), 0.0, 1.0) if high > low else np.zeros_like(s)
@@ -365,6 +333,11 @@ def _sdf(g: _Geometry) -> np.ndarray:
 
 
 def _agd(g: _Geometry) -> np.ndarray:
+    """Average Geodesic Distance (:mod:`anseg.geometry.geodesic`): the area-weighted mean heat-method distance to the shape.
+
+    ``agd`` is the absolute value, ``agd_rel`` = (agd - min) / (max - min) per
+    mesh: 0 at the geodesic centre, 1 at the farthest extremity.
+    """
     a = g.agd
     span = a.max() - a.min()
     relative = (a - a.min()) / span if span > 0 else np.zeros_like(a)
@@ -372,6 +345,11 @@ def _agd(g: _Geometry) -> np.ndarray:
 
 
 def _smooth(g: _Geometry) -> np.ndarray:
+    """``sdf``, ``gc_slog`` and ``agd`` diffused over the surface at the geodesic radii ``smooth_radii``.
+
+    Optional (not in :data:`DEFAULT_GROUPS`): a face sees its wide
+    neighbourhood (:mod:`anseg.geometry.diffusion`).
+    """
     signals = np.stack([g.sdf, g.gc_slog, g.agd], axis=1)
     if g.mesh.n_faces > proxy.LARGE_MESH_FACES:
         coarse, face_of = g.proxy
@@ -384,6 +362,17 @@ def _smooth(g: _Geometry) -> np.ndarray:
 
 
 def _hks(g: _Geometry) -> np.ndarray:
+    """The Heat Kernel Signature (Sun, Ovsjanikov and Guibas 2009), optional.
+
+    From the first :data:`HKS_EIGENPAIRS` eigenpairs of the cotan Laplacian
+    (Voronoi masses) of the unit-area mesh, at the fixed diffusion times
+    :data:`HKS_TIMES`, each divided by its heat trace (the mean over the
+    surface of that time's signature) and logged: log(hks(x, t) / sum_i
+    exp(-lambda_i t)). Intrinsic, so unchanged by the pose and by the
+    inconsistent orientations of PSB, and it says where a face sits on the
+    whole shape (a tip, a junction, a trunk), which local descriptors cannot.
+    Fixed times on unit-area meshes make the columns comparable across meshes.
+    """
     return g.hks
 
 
@@ -403,7 +392,7 @@ def _signed_rank(values: np.ndarray) -> np.ndarray:
 
 
 def _heat_kernel_signature(mesh: Mesh, n_pairs: int, times: np.ndarray) -> np.ndarray:
-    """(V, len(times)) log heat-trace-normalised HKS from the low end of the spectrum (module docstring)."""
+    """(V, len(times)) log heat-trace-normalised HKS from the low end of the spectrum (see ``_hks``)."""
     values, vectors = laplacian_eigenpairs(mesh, n_pairs)
     decay = np.exp(-np.outer(values, times))  # (k, T)
     signature = (vectors**2) @ decay  # (V, T)

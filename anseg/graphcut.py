@@ -11,17 +11,14 @@ edge length and ``theta_e`` the signed dihedral angle of the shared edge
 (negative = concave, :attr:`Mesh.dihedral_angles`). Both normalisations make
 ``weight`` mean the same on any mesh, whatever its units or resolution.
 
-Why this pairwise form: part boundaries of man-made and organic shapes run
-along concave creases (the minima rule), so a cut there should be cheap,
-while a cut across a flat or convex region should pay its full length. The
-exponential keeps convex and flat edges at exactly full cost and makes a
-right-angled concave crease (theta = -pi/2) cost exp(-pi/2 * discount) of
-it (1 % at the default discount 3); ``concave_discount=0`` gives plain
-length-weighted Potts. The classic ``-log(theta/pi)`` form was not used
-because it is unbounded at flat edges and needs clipping to stay finite.
-
-Boundary edges carry no pairwise term; disconnected components are
-smoothed independently by the same cut.
+Why this pairwise form: part boundaries run along concave creases (the minima
+rule), so a cut there should be cheap, while a cut across a flat or convex
+region should pay its full length. The exponential keeps convex and flat edges
+at full cost and makes a right-angled concave crease cost exp(-pi/2 * discount)
+of it (1 % at the default discount 3); ``concave_discount=0`` gives plain
+length-weighted Potts. The classic ``-log(theta/pi)`` form is unbounded at flat
+edges and would need clipping. Boundary edges carry no pairwise term;
+disconnected components are smoothed independently by the same cut.
 """
 
 from __future__ import annotations

@@ -1,11 +1,8 @@
 """The attention network: per-face embedding, patch tokens, a transformer, face attention and class logits.
 
-One mesh per call. Faces come grouped into patches (the transformer's tokens) by a
-:class:`~anseg.cluster.PatchLayout` computed elsewhere, which puts every face in one
-slot of a ``(n_patches, patch_size)`` grid; unused slots are padding, which only the
-share's softmax sees (as -inf).
-
-Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
+One mesh per call. Faces come grouped into patches (the tokens) by a :class:`~anseg.cluster.PatchLayout`
+computed elsewhere, a ``(n_patches, patch_size)`` grid whose unused slots (padding) only the share's
+softmax sees (as -inf). Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
 
     x (F, in) --embed MLP--> e (F, W)  [--diffusion blocks--> e (F, W), optional]
     per-face score s = w.e; share = softmax of s over the patch's faces
@@ -15,60 +12,14 @@ Data flow (W = ``width``, T tokens, P slots per token, F faces, C classes)::
     attention = received mass of the token (last block) x share x F  (F,)
     context = LN(h), per token (the face's token is patch), what a finer level may read  (T, W)
 
-Choices, and why:
-
-- **Attention** is Eq. 1-4 of the paper, per head: Q, K, V = X W, A = softmax(Q K^T / sqrt(d))
-  with d the head dimension. Outputs go through ``scaled_dot_product_attention`` so A is
-  never stored for all tokens at once (memory O(T), not O(T^2)).
-- **Attention value of a face.** A token's value is the attention mass it *receives*:
-  the mean over queries and heads of its column of A, taken from the **last** block (the
-  one closest to the loss; one extra pass instead of ``depth``). These masses sum to 1
-  over tokens. They are computed in chunks of queries (:func:`received_attention`), so
-  memory stays O(chunk x T). A token's mass is spread over its faces by the same
-  learned share that pools the faces into the token: tying the two gives the share a
-  gradient from the classification loss (the collapse that consumes the attention is
-  not differentiable), and the faces that make up most of a token get most of its
-  attention. Face attention = token mass x face share x F, so its **mean over the real
-  faces of a mesh is exactly 1** and values compare across meshes of different size.
-  It is computed without gradient, except with ``attention_grad=True``: training
-  may then supervise it (anseg.train teaches it to mark label boundaries, where the
-  collapse must keep detail); the backward pass runs over the same chunks.
-  ``detach_share`` cuts that supervision's direct path through the share (the factor
-  that spreads a token's mass over its faces), so that the boundary signal goes to the
-  queries and keys; the share still shapes the tokens they are made from.
-- **Positional signal**: off by default (``position_frequencies = 0``). The sequence
-  is ordered by K-means cluster, and cluster numbers are arbitrary from mesh to mesh, so
-  absolute position in the sequence carries no meaning that transfers; it is exposed
-  as a parameter to be measured (Fourier features of the normalised position t/(T-1)
-  through a learned Linear).
-- **Spatial context on the surface** (all three off by default; they read the mesh's
-  Laplacian eigenbasis, :class:`SpectralInput`, which the pipeline carries to coarse
-  levels through the collapse records). Tokens are a set of patches: without these
-  the network knows what a patch looks like, not where it sits relative to the others.
-  ``position_pairs`` > 0: the first that many non-constant eigenvectors, pooled into
-  each token by the share, through a learned Linear added to the token. An
-  eigenvector's sign is arbitrary, so in training every one is flipped at random at
-  every forward pass (the network must not rely on it). ``diffusion_blocks`` > 0:
-  blocks of learned heat diffusion on the faces, after the embedding (so the tokens,
-  the head and the attention all read it): e += MLP([e, D_t e]) with D_t e =
-  Phi exp(-Lambda t) Phi^T M e, one learned time t per channel (DiffusionNet's
-  spectral diffusion, Sharp et al. 2022); unchanged by the eigenvectors' signs, and
-  by any rotation inside an eigenspace whose eigenvalues are equal. ``heat_bias_pairs``
-  > 0: an additive attention bias between tokens, a heat kernel on their pooled
-  eigenvector coordinates at a few times, weighted per block and head
-  (:meth:`AttentionSegmenter._heat_columns`); being of rank P it enters as P more
-  query and key columns, so attention keeps the flash kernel and O(T) memory.
-- **Depth 0** is the paper's "without downsampling" control (Table IV): no tokens, no
-  transformer and no attention module, a per-face classifier on the features alone
-  (logits = head(e)); its attention is flat (1 at every face).
-- **Coarse context** (``coarse_levels`` > 0, off by default): a second head for the input
-  level reads, beside a face's embedding and its token's context, the context of the
-  face it became on each of the ``coarse_levels`` coarser levels (carried down by the
-  caller through the collapse records), U-Net style, so that the coarse levels' wide
-  view reaches the input faces through the network instead of a vote.
-- **Initialisation**: the paper draws initial weights from "N(0, 0.001)", read here as
-  variance 0.001 (std ~ 0.0316), for every Linear weight; biases are zero and LayerNorm
-  keeps its default (weight 1, bias 0).
+Attention is Eq. 1-4 of the paper, through ``scaled_dot_product_attention``, so A is never stored
+whole (memory O(T)). A face's attention is the mass its token *receives* in the last block (mean
+over queries and heads, in chunks: :func:`received_attention`), spread over the token's faces by the
+learned share that pools them, which gives the share a gradient from the class loss (the collapse
+is not differentiable); times F, so its mean over a mesh's faces is exactly 1 and compares across
+meshes. It has no gradient unless ``attention_grad=True``, so that training may supervise it.
+**Depth 0** is the paper's "without downsampling" control (Table IV): a per-face classifier (logits =
+head(e)), flat attention. Weights start from the paper's "N(0, 0.001)", read as variance. Switches: :class:`ModelConfig`.
 """
 
 from __future__ import annotations
@@ -89,14 +40,47 @@ from anseg.cluster import PatchLayout
 # The heat-kernel attention bias's diffusion times on the unit-area mesh: from a few tokens' reach to a limb's
 HEAT_BIAS_TIMES = (0.005, 0.02, 0.08)
 # Scores in one chunk of received_attention: 4 MiB of float32, small enough to stay near the core
-# between the passes over it. On this project's 2-core VM (2 MiB of L2 a core), forward and backward,
-# 16 MiB chunks took 1.3-1.6x as long at 1.5K-3K tokens (1.1x at 12.5K), 1 MiB chunks no less.
+# between the passes over it; larger chunks were slower and smaller ones no faster (docs/decisions.md).
 _CHUNK_ELEMENTS = 1 << 20
 
 
 @dataclass
 class ModelConfig:
-    """Hyper-parameters of :class:`AttentionSegmenter`."""
+    """Hyper-parameters of :class:`AttentionSegmenter`; every switch below is off by default.
+
+    ``detach_share`` cuts the attention supervision's direct path through the
+    share (the factor that spreads a token's mass over its faces), so that the
+    boundary signal goes to the queries and keys; the share still shapes the
+    tokens they are made from.
+
+    ``position_frequencies``: Fourier features of the normalised position
+    t/(T-1) through a learned Linear. Off because the sequence is ordered by
+    K-means cluster, whose numbers are arbitrary from mesh to mesh, so
+    absolute position carries no meaning that transfers.
+
+    Spatial context on the surface, read from the mesh's Laplacian eigenbasis
+    (:class:`SpectralInput`, carried to coarse levels by the pipeline): tokens
+    are a set of patches, and without these the network knows what a patch
+    looks like, not where it sits. ``position_pairs``: that many non-constant
+    eigenvectors, pooled into each token by the share, through a learned
+    Linear added to the token; an eigenvector's sign is arbitrary, so training
+    flips each at random at every forward pass. ``diffusion_blocks``: learned
+    heat diffusion on the faces after the embedding, e += MLP([e, D_t e]) with
+    D_t e = Phi exp(-Lambda t) Phi^T M e, one learned time per channel
+    (DiffusionNet's spectral diffusion, Sharp et al. 2022), unchanged by the
+    eigenvectors' signs and by rotations inside an eigenspace of equal
+    eigenvalues. ``heat_bias_pairs``: an additive attention bias between
+    tokens, a heat kernel on their pooled eigenvector coordinates at a few
+    times, weighted per block and head (:meth:`AttentionSegmenter._heat_columns`);
+    of rank P, it enters as P more query and key columns, so attention keeps
+    the flash kernel and O(T) memory.
+
+    ``coarse_levels``: a second head for the input level reads, beside a face's
+    embedding and its token's context, the context of the face it became on
+    each of that many coarser levels (carried down through the collapse
+    records), U-Net style, so the coarse levels' wide view reaches the input
+    faces through the network instead of a vote.
+    """
 
     in_features: int
     n_classes: int
@@ -106,14 +90,14 @@ class ModelConfig:
     patch_size: int = 16
     dropout: float = 0.0
     init_std: float = math.sqrt(0.001)  # the paper's N(0, 0.001), read as variance
-    position_frequencies: int = 0  # 0: no positional signal (see module docstring)
-    coarse_levels: int = 0  # coarser levels whose context the input level's second head reads (module docstring)
-    detach_share: bool = False  # the attention loss reaches the share only through the tokens (module docstring)
+    position_frequencies: int = 0  # 0: no positional signal (see the class docstring)
+    coarse_levels: int = 0  # coarser levels whose context the input level's second head reads (class docstring)
+    detach_share: bool = False  # the attention loss reaches the share only through the tokens (class docstring)
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
     spectral_pairs: int = 0  # eigenpairs of the SpectralInput the model reads (0: none)
-    position_pairs: int = 0  # non-constant eigenvectors pooled into each token (module docstring)
-    diffusion_blocks: int = 0  # learned diffusion blocks on the faces (module docstring)
-    heat_bias_pairs: int = 0  # non-constant eigenvectors of the heat-kernel attention bias (module docstring)
+    position_pairs: int = 0  # non-constant eigenvectors pooled into each token (class docstring)
+    diffusion_blocks: int = 0  # learned diffusion blocks on the faces (class docstring)
+    heat_bias_pairs: int = 0  # non-constant eigenvectors of the heat-kernel attention bias (class docstring)
 
     def __post_init__(self) -> None:
         for name in ("in_features", "n_classes", "width", "heads", "patch_size"):
@@ -256,7 +240,7 @@ class SelfAttention(nn.Module):
         n_tokens, width = h.shape
         dim = width // self.heads
         # (3, 1, H, T, d): the leading batch axis of 1 matters, the CPU flash kernel
-        # wants 4-d input; 3-d input falls back to a path that stores all of A (5 GiB at 12.5K tokens).
+        # wants 4-d input; 3-d input falls back to a path that stores all of A (docs/decisions.md).
         q, k, v = self.qkv(h).view(n_tokens, 3, self.heads, dim).permute(1, 2, 0, 3).unsqueeze(1)
         if heat is not None:
             # a bias of rank P is P more columns: scale q_h'.k' = scale q.k + bias_h, and the flash kernel is kept
@@ -269,7 +253,7 @@ class SelfAttention(nn.Module):
 
 
 class SpectralDiffusion(nn.Module):
-    """e + MLP([e, D_t e]), D_t the heat diffusion through the eigenbasis, one learned time per channel (module docstring)."""
+    """e + MLP([e, D_t e]), D_t the heat diffusion through the eigenbasis, one learned time per channel (:class:`ModelConfig`)."""
 
     def __init__(self, width: int):
         super().__init__()

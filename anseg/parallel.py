@@ -5,26 +5,20 @@ yields ``(index, result)`` as each finishes (an exception that a call raised
 comes back as the result, so that one failure does not lose the others).
 ``workers=1`` runs the calls here, in order. More go to one of two backends:
 
-* ``"loky"`` (feature computation): joblib's loky executor (joblib comes
-  with scikit-learn). Its workers start from a fresh interpreter, as with
-  ``spawn`` (forking once torch, numba or OpenMP threads exist is unsafe),
-  but they do not re-import the caller's ``__main__``, so a plain script
-  without an ``if __name__ == "__main__":`` guard works as well as a
-  notebook.
+* ``"loky"`` (feature computation): joblib's loky executor. Its workers start
+  from a fresh interpreter (forking once torch, numba or OpenMP threads exist
+  is unsafe) but do not re-import the caller's ``__main__``, so a script
+  without an ``if __name__ == "__main__":`` guard works, as does a notebook.
 * ``"dask"`` (trainings: :func:`anseg.study.runner.run_plan`, validation):
-  Dask distributed, on a ``LocalCluster`` of ``workers`` processes here, or
-  on the running cluster whose scheduler address is ``scheduler``, so the
-  same plan scales from this machine to a cluster without a changed line.
-  A worker lost in the middle of a call costs only that call, which the
-  scheduler runs again elsewhere; a call that asks for a GPU
-  (:class:`GpuCall`) only goes to workers started with ``--resources GPU=1``.
-  The dashboard's address is printed when bokeh is installed.
+  a ``LocalCluster`` of ``workers`` processes, or the running cluster at
+  ``scheduler``, so a plan scales to a cluster without a changed line. A lost
+  worker costs only its call, which runs again elsewhere; a :class:`GpuCall`
+  goes only to workers started with ``--resources GPU=1``.
 
-Every worker of either backend computes with one thread (OpenMP, numba,
-torch): on a small machine several jobs with several threads each thrash.
-Inside a Dask worker, :func:`in_worker` is true and callers that would start
-a pool of their own (the feature cache) work in-process instead: a worker
-process may not start processes.
+Every worker computes with one thread (OpenMP, numba, torch): on a small
+machine several jobs with several threads each thrash. Inside a Dask worker
+:func:`in_worker` is true, and callers that would start a pool of their own
+(the feature cache) work in-process: a worker may not start processes.
 """
 
 from __future__ import annotations

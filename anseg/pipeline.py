@@ -1,48 +1,25 @@
 """Algorithm 1 end to end: features -> N x (cluster, attend, collapse) -> classify -> upsample -> smooth.
 
-``build_levels`` runs the downsampling units and keeps every level (mesh,
-features, patch layout, attention, collapse record), which training and the
-figures need; ``segment`` adds the classification, the upsampling through
-the collapse records and the graph cut.
+``build_levels`` runs the downsampling units and keeps every level (mesh, features, patch
+layout, attention, collapse record) for training and the figures; ``segment`` adds the
+classification, the upsampling through the collapse records and the graph cut. Choices:
 
-Choices this module makes:
-
-* Features of a coarser level: the local groups (edge, angles, ratios, gc)
-  are recomputed on the coarse mesh; the global ones (sdf, agd) are pooled,
-  area-weighted, from the faces of the level above that each coarse face
-  stands for. A last column holds the level index / cycles, so that the one
-  network shared by all levels knows how coarse its input is.
-* Features are standardised with the statistics stored in the model
-  (computed on the training meshes), so that a mesh is read the same way at
-  training and at test time.
-* Features: the paper's groups plus ``smooth`` (SDF, curvature and AGD
-  diffused over a few geodesic radii) and ``hks`` (heat kernel signatures:
-  where a face sits on the whole shape). Wide-neighbourhood features are what
-  lifted a gradient-boosting baseline most on PSB split 0 (Teddy 94.0 ->
-  97.0 %, Airplane 82.1 -> 87.8 %, Human 76.6 -> 80.5 %, benchmarks/features.py
-  study), at 0.12 s per 25K faces; ``hks`` was adopted by cross-validation on
-  training meshes (:mod:`anseg.study.validate`), like every default of
-  :class:`SegmentConfig` and :class:`~anseg.train.TrainConfig`.
-* Labels: by default the class probabilities of every level are carried up
-  to the original faces and averaged (``combine="all"``). The paper labels
-  the coarsest level only (``combine="coarsest"``); on the synthetic figures
-  (100 epochs) that gave 73.9 % for nonuniform against 85.4 % averaged,
-  because a heavily collapsed coarse face mislabels every input face it
-  stands for, while averaging keeps the coarse levels' context and the fine
-  level's detail. ``combine="decay"`` weighs level i by 2^-i (each level has
-  about half the faces of the one before), so that the input level keeps
-  half the vote instead of a fifth; ``"finest"`` takes the input level
-  alone, the reading for a network with coarse context (TrainConfig's
-  ``coarse_context``: the input level's head reads the coarse levels'
-  context carried down through the collapse records, :func:`forward_levels`).
-* ``local_scale``: the ``edge`` group's values are lengths on the unit-area
-  mesh, so they grow as a level gets coarser (the product of three lengths
-  by 8x per halving) and sit far outside the level-0 statistics that
-  standardise them. ``"relative"`` reads them against the level's own
-  median edge length instead (logged, per length: log(e_k / l^k) / k), so
-  that every level is on the level-0 scale and a giant face shows as a few
-  units, not thousands (the default); ``"unit_area"`` keeps the values as
-  the cache holds them (the paper's reading and ``v1``).
+* Coarse levels recompute the local groups and pool the global ones, area-weighted, from the
+  faces each coarse face stands for; a last column (level / cycles) tells the one shared
+  network how coarse its input is. Features are standardised with statistics stored in the
+  model (from the training meshes), so a mesh reads the same at training and test time.
+* Groups: the paper's plus the wide-neighbourhood ``smooth`` and ``hks``; every default of :class:`SegmentConfig`
+  and :class:`~anseg.train.TrainConfig` comes from cross-validation on training meshes (:mod:`anseg.study.validate`).
+* ``combine``: ``"all"`` (default) averages the class probabilities of every level carried up
+  to the input faces, keeping the coarse levels' context and the fine level's detail; the
+  paper's ``"coarsest"`` lets one heavily collapsed face mislabel every input face it stands
+  for. ``"decay"`` weighs level i by 2^-i, so the input level keeps half the vote; ``"finest"``
+  takes the input level alone, for a network with coarse context (:func:`forward_levels`).
+* ``local_scale``: on the unit-area mesh the ``edge`` values grow as levels coarsen, far outside
+  the level-0 statistics. ``"relative"`` (default) reads them against the level's median edge
+  length l (log(e_k / l^k) / k), so a giant face shows as a few units, not thousands;
+  ``"unit_area"`` keeps the cached values (the paper's reading and ``v1``).
+Measured gains behind these choices: ``docs/decisions.md``.
 """
 
 from __future__ import annotations

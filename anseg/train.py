@@ -6,30 +6,20 @@ face's target is the area-weighted majority of the original faces it stands
 for), each face weighted by its share of the mesh's area, as Eq. 5 weighs it.
 Adam, learning rate 1e-3, initial weights N(0, 0.001) (the paper).
 
-The collapse is not differentiable, so the hierarchy is rebuilt from the
-current attention every ``recollapse_every`` epochs (default 5) and kept in
-between: rebuilding needs K-means and the coarse features at every level,
-which costs more than the gradient steps, and the attention moves slowly
-from epoch to epoch. The input level's layout and a hierarchy that
-attention does not drive (uniform collapse, none) never change, so they
-are built once.
+The collapse is not differentiable, so the hierarchy is rebuilt from the current attention
+every ``recollapse_every`` epochs and kept in between: rebuilding (K-means and coarse features
+at every level) costs more than the gradient steps, and the attention moves slowly. The input
+level's layout and a hierarchy that attention does not drive never change, so they are built once.
 
-The attention gets a training signal of its own (``attention_weight``, on by
-default; 0 gives the paper's plain reading, where attention is trained only
-through the class loss). Left to the class loss alone, the received
-attention came out nearly flat (0.97-1.0 on the synthetic figures) and the
-collapse, which follows its ranking, wiped whole regions (one coarse face
-standing for 255 input faces); the round-trip study (benchmarks/roundtrip.py)
-shows that a score high near label boundaries keeps 99.97 % of PSB labels
-through 4 cycles against 98.15 % for uniform collapse. So on every level that
-is collapsed, the attention of a face is trained, as the logit log(attention),
-by class-balanced binary cross-entropy to tell faces within
-``boundary_rings`` rings of another label from the rest. This is the
-behaviour the paper describes for its attention (high at junctions and
-detail, Fig. 4), made explicit. ``evaluate`` segments the test meshes and reports Eq. 5
-in the three readings of :mod:`anseg.metrics`, with and without the graph
-cut. No model selection is done on the test meshes: the model of the last
-epoch is the one evaluated.
+The attention gets a training signal of its own (``attention_weight``; 0 gives the paper's
+reading, attention trained through the class loss alone, which leaves it nearly flat, so the
+collapse wipes whole regions). On every collapsed level a face's attention, as the logit
+log(attention), is trained by class-balanced binary cross-entropy to tell faces within
+``boundary_rings`` rings of another label from the rest: a score high near label boundaries
+keeps labels through the collapses, the behaviour the paper describes (Fig. 4) made explicit.
+``evaluate`` segments the test meshes and reports Eq. 5 in the three readings of
+:mod:`anseg.metrics`, with and without the graph cut; no model selection is done on the test
+meshes (the last epoch's model is evaluated). The measurements behind this: ``docs/decisions.md``.
 """
 
 from __future__ import annotations
@@ -74,9 +64,9 @@ class TrainConfig:
     ``"cosine"`` decays it from ``lr`` to 0 over the run's steps, so that the
     last epochs, whose model is the one kept, settle instead of moving at
     full step size. ``coarse_context`` gives the input level a head that
-    reads the coarse levels' context (:mod:`anseg.model`); its loss then
+    reads the coarse levels' context (:class:`~anseg.model.ModelConfig`); its loss then
     weighs as much as the coarse levels' together. ``detach_share``: the
-    attention loss does not reach the pooling share directly (:mod:`anseg.model`).
+    attention loss does not reach the pooling share directly (:class:`~anseg.model.ModelConfig`).
     ``average_last`` > 0 keeps the average of the weights at the end of each
     of the last that many epochs instead of the last weights (stochastic
     weight averaging at the constant rate): the last epoch's weights still
@@ -84,7 +74,7 @@ class TrainConfig:
     of them, so that a short run (a smoke test, the synthetic notebooks) need
     not change the setting. ``position_pairs``, ``diffusion_blocks`` and
     ``heat_bias_pairs`` give the network spatial context from the mesh's
-    Laplacian eigenbasis (:mod:`anseg.model`; all off by default).
+    Laplacian eigenbasis (:class:`~anseg.model.ModelConfig`; all off by default).
     """
 
     epochs: int = 60

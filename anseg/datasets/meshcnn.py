@@ -8,21 +8,18 @@ the human one; or their extracted folders)::
     <set>/sseg/<stem>.seseg   one row of per-class weights per edge (optional)
     <set>/classes.txt         one class name per line (optional)
 
-Edges are numbered as :attr:`anseg.mesh.Mesh.edges` numbers them: walk the
-faces in file order, take the local edges (v0,v1), (v1,v2), (v2,v0), and
-give an edge the next number the first time it appears. ``load_mesh`` keeps
-the OBJ's vertex and face order, so the numbering matches the files; the
-label count must equal the edge count.
+Edges are numbered as :attr:`anseg.mesh.Mesh.edges` numbers them (faces in file
+order, local edges (v0,v1), (v1,v2), (v2,v0), a new number at an edge's first
+appearance); ``load_mesh`` keeps the OBJ's order, so the numbering matches the
+files, and the label count must equal the edge count.
 
-Per-face labels: the majority of the face's three edge labels. When all three
-differ (rare), the face takes the label of its longest edge, the edge along
-which it borders that part most; such faces are counted in
-``LabeledMesh.label_ties``. Per-face soft labels: the mean of the three edges'
-rows. Label names come from ``classes.txt``, else ``part_<label as in the
-files>``; the class count is the larger of the names listed and the largest
-label in any ``.eseg`` of the set, so every mesh of a set shares it (soft
-columns beyond it must be all zero and are dropped). Label files without a
-mesh are ignored.
+Per-face labels: the majority of the face's three edge labels; when all three
+differ, the label of its longest edge, along which it borders that part most
+(counted in ``LabeledMesh.label_ties``). Soft labels: the mean of the three
+edges' rows. Names: ``classes.txt``, else ``part_<label as in the files>``; the class
+count is the larger of the names listed and the largest label in the set, so
+every mesh of a set shares it (soft columns beyond it must be zero and are
+dropped). Label files without a mesh are ignored.
 """
 
 from __future__ import annotations

@@ -1,48 +1,25 @@
 """The embedded synthetic data set: seeded, labelled part-based shapes, no download.
 
-Every stage and notebook can run on it in minutes on a small CPU. Two
-categories, each a family of closed manifold meshes of about 2,000-5,000 faces
-(a fraction of a second each):
+Every stage and notebook can run on it in minutes on a small CPU. Two categories of closed
+manifold meshes, each aiming at a face count drawn from ``FACE_RANGE``:
 
-``figure``
-    Articulated figures: an ellipsoid torso, a neck and head, tapered tubes for
-    upper and lower arms and legs, ellipsoid hands and tube feet. Proportions
-    (limb lengths and thicknesses, shoulder and hip width, head size) and pose
-    (shoulder, elbow, hip and knee angles, head tilt) vary per shape; poses in
-    which limbs would touch are drawn again, so every figure is one sphere-like
-    surface (genus 0). Labels: head (with the neck), torso, upper_arm,
-    lower_arm, hand, upper_leg, lower_leg, foot; left and right share a label,
-    as in PSB Human.
-``vessel``
-    Vases and jugs: a profile curve (foot, bulging body, shoulder, neck, flared
-    lip with a shallow opening) turned about the vertical axis, with one handle
-    or two opposite ones (tubes along curves from the body to the neck).
-    A vessel with ``n`` handles has genus ``n``. Labels: base, body, neck, lip
-    (the rim and the opening), handle.
+* ``figure``: articulated figures (ellipsoid torso, neck and head, tapered limbs, hands, feet) of varying
+  proportions and pose, drawn again where limbs would touch, so of genus 0. Labels: head (with the neck),
+  torso, upper_arm, lower_arm, hand, upper_leg, lower_leg, foot; left and right share one, as in PSB Human.
+* ``vessel``: vases and jugs, a profile (foot, body, shoulder, neck, flared lip) turned about
+  the vertical axis, with one or two handles (genus = handles). Labels: base, body, neck, lip, handle.
 
-How a shape becomes a mesh: the solid is an implicit function, the smooth
-union of its parts' distance functions. Marching cubes (libigl) extracts its
-surface on a regular grid that a smooth map has contracted about the part
-junctions (joints; the rings where profile parts meet and the handle roots;
-also the vessel's thin rim), so that edges there are up to ``_REFINE`` (4)
-times shorter than far from them, as on real models. A few steps of
-tangential smoothing, weighted to keep that grading and each projected back
-onto the surface, turn the marching-cubes slivers into well-shaped triangles
-(hardly any angle below 10 degrees). A face takes the label of the part whose
-own distance function is smallest at its centroid. Each shape is checked
-(valid, closed, the expected genus, every label present) and drawn again in
-the rare case that it fails.
+A shape is an implicit solid, the smooth union of its parts' distance functions; marching cubes
+(libigl) meshes it on a grid contracted about the part junctions, so edges there are up to
+``_REFINE`` times shorter, as on real models, and weighted tangential smoothing turns the slivers
+into well-shaped triangles. A face takes the label of the part nearest its centroid. A shape that
+fails its checks (valid, closed, expected genus, every label present) is drawn again.
 
-Seeds and splits: shape ``i`` of a category is drawn from
-``numpy.random.default_rng([seed, category_number, i])`` (category numbers
-follow ``CATEGORIES``), so it does not depend on how many shapes are asked
-for. ``n_shapes`` (default 16) shapes per category are named
-``figure_000``, ``figure_001``, ... There are ``N_SPLITS`` (4) fixed splits
-forming a 4-fold partition: split ``k`` tests the shapes whose index is ``k``
-modulo 4 (4 of 16) and trains on the others (12 of 16), so the four test sets
-are disjoint and cover every shape once. The label sets differ by category,
-so train and evaluate per category; ``category=None`` returns both categories
-(names carry the category) for looking, not for training.
+Shape ``i`` of a category comes from ``numpy.random.default_rng([seed, category_number, i])``, so
+it does not depend on how many shapes are asked for. The ``N_SPLITS`` fixed splits form a
+partition: split ``k`` tests the shapes whose index is ``k`` modulo ``N_SPLITS`` and trains on the
+rest. Label sets differ by category, so train and evaluate per category; ``category=None`` returns
+both, for looking. Sizes and mesh quality as measured: ``docs/decisions.md``.
 """
 
 from __future__ import annotations
@@ -64,8 +41,8 @@ N_SPLITS = 4
 DEFAULT_SEED = 0
 FACE_RANGE = (2500, 4500)  # each shape aims at a face count drawn from this range
 
-# Marching-cubes faces per grid cell area on the surface, as measured (the refined-area
-# estimate counts rings as if they refined both ways, so vessels get about 10 % fewer).
+# Marching-cubes faces per grid cell area on the surface, measured on the generator's output (the
+# refined-area estimate counts rings as if they refined both ways, so vessels get fewer; docs/decisions.md).
 _FACES_PER_CELL = 0.7
 # How much finer the tessellation is at a junction centre than far from junctions (edge length ratio).
 _REFINE = 4.0

@@ -4,35 +4,22 @@
         [--categories Hand Vase ...] [--folds 3] [--use-folds 0 1 2] [--seeds 0 1] [--workers N | --scheduler ADDRESS]
         [--ensemble]
 
-The training meshes of one fixed PSB split (split 0 by default) are cut into
-``folds`` folds (mesh ``i`` of the split's training list goes to fold
-``i % folds``: 12 meshes give 3 folds of 8 train / 4 held out). Every *arm*
-(a named set of overrides of :class:`SegmentConfig` and, with a ``train.``
-prefix, :class:`TrainConfig`) is trained on each fold's other meshes and
-scored on its held-out ones, once per seed, on a development suite of
-categories (:data:`DEV_SUITE`: the weakest categories and one easy control).
-The test meshes of the split are never read: only ``split="train"`` is
-loaded (a test checks that).
+The training meshes of one fixed PSB split (split 0 by default) are cut into ``folds`` folds
+(mesh ``i`` of the training list goes to fold ``i % folds``). Every *arm* (named overrides of
+:class:`SegmentConfig` and, with a ``train.`` prefix, :class:`TrainConfig`) is trained on each
+fold's other meshes and scored on its held-out ones, once per seed, on :data:`DEV_SUITE` (the
+weakest categories and one easy control). Only ``split="train"`` is loaded, so the test meshes
+are never read (a test checks that).
 
-Each cell (arm x category x fold x seed) is keyed like an experiment
-(:meth:`Experiment.key`, the fold in the data options) and stored under
-``<out>/runs/<key>.json`` as it finishes, so a study resumes where it stopped.
-Settings that act only when a trained model segments (:data:`INFERENCE_ONLY`:
-the graph cut's weight, how levels are combined, test-time passes) do not
-retrain: the cell reuses the model of the same training settings, kept under ``<out>/models``
-(not committed).
-
-The report (printed, and written as CSV under ``<out>``) is :mod:`anseg.study.comparison`'s:
-per arm and category the held-out accuracy, and each arm's paired
-difference from the baseline with its 95 % two-stage bootstrap interval and
-its training cost. The decision rule: adopt when the interval excludes 0 and
-the mean is positive.
-
-``--ensemble`` also scores each arm's seeds together, their class
-probabilities averaged (:func:`~anseg.pipeline.segment`'s ``ensemble``), once
-every seed's model of a (category, fold) is stored: how much of a difference
-is seed variance, at k trainings and k segmentations per mesh. Those scores
-go under ``<out>/ensembles`` and ``<out>/<study>_ensemble.csv``.
+Each cell (arm x category x fold x seed) is keyed like an experiment (:meth:`Experiment.key`) and
+stored under ``<out>/runs/<key>.json`` as it finishes, so a study resumes where it stopped.
+:data:`INFERENCE_ONLY` settings do not retrain: the cell reuses the model of the same training
+settings, kept under ``<out>/models`` (not committed). The report (:mod:`anseg.study.comparison`)
+gives each arm's held-out accuracy and its paired difference from the baseline with a 95 %
+two-stage bootstrap interval; the rule: adopt when the interval excludes 0 and the mean is
+positive. ``--ensemble`` also scores each arm's seeds together, their probabilities averaged
+(:func:`~anseg.pipeline.segment`'s ``ensemble``), to show how much of a difference is seed
+variance (``<out>/ensembles``, ``<out>/<study>_ensemble.csv``).
 """
 
 from __future__ import annotations
