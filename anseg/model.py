@@ -6,7 +6,7 @@ softmax sees (as -inf). Data flow (W = ``width``, T tokens, P slots per token, F
 
     x (F, in) --embed MLP--> e (F, W)  [--diffusion blocks--> e (F, W), optional]
     per-face score s = w.e; share = softmax of s over the patch's faces
-    token = sum of share * e over its faces (+ optional positional signals)  (T, W)
+    token = sum of share * e over its faces                       (T, W)
     depth x pre-norm block: h += Attn(LN h); h += MLP(LN h)       (T, W)
     logits = head([e, LN(h)[patch]])                              (F, C)
     attention = received mass of the token (last block) x share x F  (F,)
@@ -37,11 +37,12 @@ from torch import nn
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout
 
-# The heat-kernel attention bias's diffusion times on the unit-area mesh: from a few tokens' reach to a limb's
-HEAT_BIAS_TIMES = (0.005, 0.02, 0.08)
 # Scores in one chunk of received_attention: 4 MiB of float32, small enough to stay near the core
 # between the passes over it; larger chunks were slower and smaller ones no faster (docs/decisions.md).
 _CHUNK_ELEMENTS = 1 << 20
+# Switches retired after validation (docs/decisions.md), each with the value that meant "off": a model file or a
+# stored setting that holds a retired switch at that value reads as today's model; any other value is refused.
+RETIRED = {"position_frequencies": 0, "position_pairs": 0, "heat_bias_pairs": 0}
 
 
 @dataclass
@@ -53,27 +54,14 @@ class ModelConfig:
     boundary signal goes to the queries and keys; the share still shapes the
     tokens they are made from.
 
-    ``position_frequencies``: Fourier features of the normalised position
-    t/(T-1) through a learned Linear. Off because the sequence is ordered by
-    K-means cluster, whose numbers are arbitrary from mesh to mesh, so
-    absolute position carries no meaning that transfers.
-
-    Spatial context on the surface, read from the mesh's Laplacian eigenbasis
-    (:class:`SpectralInput`, carried to coarse levels by the pipeline): tokens
-    are a set of patches, and without these the network knows what a patch
-    looks like, not where it sits. ``position_pairs``: that many non-constant
-    eigenvectors, pooled into each token by the share, through a learned
-    Linear added to the token; an eigenvector's sign is arbitrary, so training
-    flips each at random at every forward pass. ``diffusion_blocks``: learned
-    heat diffusion on the faces after the embedding, e += MLP([e, D_t e]) with
-    D_t e = Phi exp(-Lambda t) Phi^T M e, one learned time per channel
+    ``diffusion_blocks``: learned heat diffusion on the faces after the
+    embedding, e += MLP([e, D_t e]) with D_t e = Phi exp(-Lambda t) Phi^T M e
+    through the mesh's Laplacian eigenbasis (:class:`SpectralInput`, carried
+    to coarse levels by the pipeline), one learned time per channel
     (DiffusionNet's spectral diffusion, Sharp et al. 2022), unchanged by the
     eigenvectors' signs and by rotations inside an eigenspace of equal
-    eigenvalues. ``heat_bias_pairs``: an additive attention bias between
-    tokens, a heat kernel on their pooled eigenvector coordinates at a few
-    times, weighted per block and head (:meth:`AttentionSegmenter._heat_columns`);
-    of rank P, it enters as P more query and key columns, so attention keeps
-    the flash kernel and O(T) memory.
+    eigenvalues. Switches that validation rejected are retired
+    (:data:`RETIRED`); their runs replay at their own revision.
 
     ``coarse_levels``: a second head for the input level reads, beside a face's
     embedding and its token's context, the context of the face it became on
@@ -90,14 +78,11 @@ class ModelConfig:
     patch_size: int = 16
     dropout: float = 0.0
     init_std: float = math.sqrt(0.001)  # the paper's N(0, 0.001), read as variance
-    position_frequencies: int = 0  # 0: no positional signal (see the class docstring)
     coarse_levels: int = 0  # coarser levels whose context the input level's second head reads (class docstring)
     detach_share: bool = False  # the attention loss reaches the share only through the tokens (class docstring)
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
     spectral_pairs: int = 0  # eigenpairs of the SpectralInput the model reads (0: none)
-    position_pairs: int = 0  # non-constant eigenvectors pooled into each token (class docstring)
     diffusion_blocks: int = 0  # learned diffusion blocks on the faces (class docstring)
-    heat_bias_pairs: int = 0  # non-constant eigenvectors of the heat-kernel attention bias (class docstring)
 
     def __post_init__(self) -> None:
         for name in ("in_features", "n_classes", "width", "heads", "patch_size"):
@@ -111,17 +96,10 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.dropout must be in [0, 1), got {self.dropout}")
         if self.init_std <= 0:
             raise ValueError(f"ModelConfig.init_std must be > 0, got {self.init_std}")
-        if self.position_frequencies < 0:
-            raise ValueError(f"ModelConfig.position_frequencies must be >= 0, got {self.position_frequencies}")
-        if min(self.position_pairs, self.diffusion_blocks, self.heat_bias_pairs) < 0:
-            raise ValueError(f"ModelConfig.position_pairs, diffusion_blocks and heat_bias_pairs must be >= 0, got "
-                             f"{self.position_pairs}, {self.diffusion_blocks} and {self.heat_bias_pairs}")
-        pairs = max(self.position_pairs, self.heat_bias_pairs)
-        if (pairs or self.diffusion_blocks) and self.spectral_pairs <= pairs:
-            raise ValueError(f"ModelConfig.spectral_pairs ({self.spectral_pairs}) must exceed position_pairs and "
-                             f"heat_bias_pairs ({pairs}) when the model reads a spectrum")
-        if pairs and not self.depth:
-            raise ValueError("ModelConfig.position_pairs and heat_bias_pairs need tokens (depth > 0)")
+        if self.diffusion_blocks < 0:
+            raise ValueError(f"ModelConfig.diffusion_blocks must be >= 0, got {self.diffusion_blocks}")
+        if self.diffusion_blocks and not self.spectral_pairs:
+            raise ValueError("ModelConfig.diffusion_blocks need a spectrum to read (spectral_pairs > 0)")
         if self.coarse_levels < 0 or (self.coarse_levels and not self.depth):
             raise ValueError(f"ModelConfig.coarse_levels must be >= 0, and needs depth > 0, got {self.coarse_levels}")
 
@@ -229,26 +207,14 @@ class SelfAttention(nn.Module):
         # Dropout on the output, not on A: sdpa's dropout_p sends CPU to the path that stores all of A.
         self.dropout = nn.Dropout(config.dropout)
 
-    def forward(self, h: torch.Tensor, heat: tuple[torch.Tensor, torch.Tensor] | None = None
-                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(T, W) -> output (T, W), and the per-head queries and keys (H, T, d), scores at scale 1/sqrt(d).
-
-        ``heat``: the heat-kernel bias as extra query (H, T, P) and key (T, P)
-        columns (:meth:`AttentionSegmenter._heat_columns`); the returned queries
-        and keys then carry them, so the received attention sees the same scores.
-        """
+    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(T, W) -> output (T, W), and the per-head queries and keys (H, T, d), scores at scale 1/sqrt(d)."""
         n_tokens, width = h.shape
         dim = width // self.heads
         # (3, 1, H, T, d): the leading batch axis of 1 matters, the CPU flash kernel
         # wants 4-d input; 3-d input falls back to a path that stores all of A (docs/decisions.md).
         q, k, v = self.qkv(h).view(n_tokens, 3, self.heads, dim).permute(1, 2, 0, 3).unsqueeze(1)
-        if heat is not None:
-            # a bias of rank P is P more columns: scale q_h'.k' = scale q.k + bias_h, and the flash kernel is kept
-            extra_q, extra_k = heat
-            q = torch.cat([q, extra_q.unsqueeze(0) * math.sqrt(dim)], dim=-1)
-            k = torch.cat([k, extra_k.expand(self.heads, -1, -1).unsqueeze(0)], dim=-1)
-            v = F.pad(v, (0, extra_k.shape[1]))  # one head dim for q, k and v, or CPU leaves the flash kernel
-        out = F.scaled_dot_product_attention(q, k, v, scale=1.0 / math.sqrt(dim))[..., :dim]
+        out = F.scaled_dot_product_attention(q, k, v, scale=1.0 / math.sqrt(dim))
         return self.dropout(self.proj(out[0].transpose(0, 1).reshape(n_tokens, width))), q[0], k[0]
 
 
@@ -283,10 +249,9 @@ class Block(nn.Module):
             nn.Dropout(config.dropout),
         )
 
-    def forward(self, h: torch.Tensor, heat: tuple[torch.Tensor, torch.Tensor] | None = None
-                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(T, W) -> (T, W), plus this block's queries and keys (H, T, d); ``heat`` as in :class:`SelfAttention`."""
-        update, q, k = self.attention(self.norm_attention(h), heat)
+    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(T, W) -> (T, W), plus this block's queries and keys (H, T, d)."""
+        update, q, k = self.attention(self.norm_attention(h))
         h = h + update
         return h + self.mlp(self.norm_mlp(h)), q, k
 
@@ -301,12 +266,7 @@ class AttentionSegmenter(nn.Module):
         layers = [nn.Linear(config.in_features, width), nn.GELU(), nn.Linear(width, width)]
         self.embed = nn.Sequential(*layers, *([nn.LayerNorm(width)] if config.embed_norm else []))
         self.share_score = nn.Linear(width, 1)
-        self.position = nn.Linear(2 * config.position_frequencies, width) if config.position_frequencies else None
-        self.spectral_position = nn.Linear(config.position_pairs, width) if config.position_pairs else None
         self.diffusion = nn.ModuleList(SpectralDiffusion(width) for _ in range(config.diffusion_blocks))
-        # each block's and head's weight of every heat time; zero: the bias starts off, as plain attention
-        self.heat_weight = (nn.Parameter(torch.zeros(config.depth, config.heads, len(HEAT_BIAS_TIMES)))
-                            if config.heat_bias_pairs else None)
         self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))
         self.norm_out = nn.LayerNorm(width)
         context = width if config.depth else 0  # depth 0: the face's own embedding only
@@ -375,13 +335,8 @@ class AttentionSegmenter(nn.Module):
         scores = layout.to_tokens(self.share_score(embedded).squeeze(-1), fill=-math.inf)
         share = layout.to_faces(torch.softmax(scores, dim=1))
         h = embedded.new_zeros(layout.n_patches, embedded.shape[1]).index_add(0, patch, share.unsqueeze(1) * embedded)
-        if self.position is not None:
-            h = h + self.position(self._position_features(layout.n_patches, h.device))
-        if self.spectral_position is not None:
-            h = h + self.spectral_position(self._spectral_positions(spectrum, share, patch, layout.n_patches))
-        heat = self._heat_columns(spectrum, share, patch, layout.n_patches) if self.heat_weight is not None else None
-        for index, block in enumerate(self.blocks):
-            h, q, k = block(h, None if heat is None else (heat[0][index], heat[1]))
+        for block in self.blocks:
+            h, q, k = block(h)
         context = self.norm_out(h)
         if coarse is not None:
             logits = self._head_on_faces(self.context_head, embedded, context, patch, coarse)
@@ -409,45 +364,18 @@ class AttentionSegmenter(nn.Module):
 
     @property
     def _scale(self) -> float:
-        """The attention's score scale, 1/sqrt(head dim) (the heat bias's extra columns leave it alone)."""
+        """The attention's score scale, 1/sqrt(head dim)."""
         return 1.0 / math.sqrt(self.config.width // self.config.heads)
 
-    def _heat_columns(self, spectrum: SpectralInput, share: torch.Tensor, patch: torch.Tensor,
-                      n_tokens: int) -> tuple[torch.Tensor, torch.Tensor]:
-        """The heat-kernel bias as extra columns: queries (depth, H, T, P) and keys (T, P).
 
-        Each token's coordinates are its faces' first P non-constant
-        eigenvectors pooled by the share and scaled to unit length (u_i); the
-        bias of head h between tokens i and j is sum_k g_h(k) u_ik u_jk with
-        the filter g_h(k) = sum_s w_hs exp(-lambda_k t_s) over the times
-        :data:`HEAT_BIAS_TIMES`: a heat kernel between the tokens' positions
-        on the surface, unchanged by the eigenvectors' signs (each appears
-        twice) and smooth in lambda, so near-equal eigenvalues' vectors may mix.
-        """
-        pairs = self.config.heat_bias_pairs
-        vectors = spectrum.basis[:, 1 : 1 + pairs]
-        pooled = vectors.new_zeros(n_tokens, pairs).index_add(0, patch, share.unsqueeze(1) * vectors)
-        keys = pooled / pooled.norm(dim=1, keepdim=True).clamp_min(1e-6)
-        times = torch.tensor(HEAT_BIAS_TIMES, dtype=keys.dtype, device=keys.device)
-        decay = torch.exp(-spectrum.values[1 : 1 + pairs].unsqueeze(0) * times.unsqueeze(1))  # (S, P)
-        filters = self.heat_weight @ decay  # (depth, H, P)
-        return filters.unsqueeze(2) * keys, keys
-
-    def _spectral_positions(self, spectrum: SpectralInput, share: torch.Tensor, patch: torch.Tensor,
-                            n_tokens: int) -> torch.Tensor:
-        """(T, position_pairs): the non-constant eigenvectors pooled by the share, each sign flipped at random in training."""
-        vectors = spectrum.basis[:, 1 : 1 + self.config.position_pairs]
-        if self.training:
-            signs = torch.randint(0, 2, (vectors.shape[1],), device=vectors.device) * 2 - 1
-            vectors = vectors * signs.to(vectors.dtype)
-        return vectors.new_zeros(n_tokens, vectors.shape[1]).index_add(0, patch, share.unsqueeze(1) * vectors)
-
-    def _position_features(self, n_tokens: int, device: torch.device) -> torch.Tensor:
-        """sin/cos of 2^j pi t/(T-1), j < position_frequencies: (T, 2 x frequencies)."""
-        position = torch.arange(n_tokens, device=device, dtype=torch.float32) / max(n_tokens - 1, 1)
-        frequencies = math.pi * 2.0 ** torch.arange(self.config.position_frequencies, device=device)
-        angles = position.unsqueeze(1) * frequencies
-        return torch.cat([angles.sin(), angles.cos()], dim=1)
+def model_config(recorded: dict) -> ModelConfig:
+    """The :class:`ModelConfig` a model file records: a retired switch (:data:`RETIRED`) is dropped where it was off
+    and refused where it was on, since this code no longer has what it switched on."""
+    on = {name: value for name, value in recorded.items() if name in RETIRED and value != RETIRED[name]}
+    if on:
+        raise ValueError(f"the model uses switches retired since it was trained ({on}); "
+                         "replay it at the revision that trained it")
+    return ModelConfig(**{name: value for name, value in recorded.items() if name not in RETIRED})
 
 
 def save(model: AttentionSegmenter, path: str | os.PathLike) -> Path:
@@ -461,6 +389,6 @@ def load(path: str | os.PathLike, map_location: str | torch.device = "cpu") -> A
     payload = torch.load(path, map_location=map_location, weights_only=True)
     if not isinstance(payload, dict) or not {"config", "state_dict"} <= payload.keys():
         raise ValueError(f"{path} is not a model written by anseg.model.save")
-    model = AttentionSegmenter(ModelConfig(**payload["config"]))
+    model = AttentionSegmenter(model_config(payload["config"]))
     model.load_state_dict(payload["state_dict"])
     return model.eval()

@@ -40,7 +40,7 @@ from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
 from anseg.hierarchy import Hierarchy, Level, pool
 from anseg.mesh import Mesh
-from anseg.model import AttentionSegmenter, ModelConfig, Output, SpectralInput
+from anseg.model import AttentionSegmenter, Output, SpectralInput, model_config
 
 # how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
@@ -181,7 +181,7 @@ class Segmenter:
         """Read a model written by :meth:`save`."""
         try:
             payload = torch.load(path, map_location=device, weights_only=True)
-            network = AttentionSegmenter(ModelConfig(**payload["network_config"]))
+            network = AttentionSegmenter(model_config(payload["network_config"]))
             reference = network.state_dict()
             network.load_state_dict({k: v.to(reference[k].dtype) for k, v in payload["state_dict"].items()})
         except (OSError, KeyError, TypeError, RuntimeError, pickle.UnpicklingError) as exc:

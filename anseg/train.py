@@ -72,9 +72,9 @@ class TrainConfig:
     weight averaging at the constant rate): the last epoch's weights still
     move with the step size and the seed. A run of fewer epochs averages all
     of them, so that a short run (a smoke test, the synthetic notebooks) need
-    not change the setting. ``position_pairs``, ``diffusion_blocks`` and
-    ``heat_bias_pairs`` give the network spatial context from the mesh's
-    Laplacian eigenbasis (:class:`~anseg.model.ModelConfig`; all off by default).
+    not change the setting. ``diffusion_blocks`` gives the network learned
+    heat diffusion through the mesh's Laplacian eigenbasis
+    (:class:`~anseg.model.ModelConfig`; off by default).
     """
 
     epochs: int = 60
@@ -91,9 +91,7 @@ class TrainConfig:
     recollapse_every: int = 5
     attention_weight: float = 1.0
     boundary_rings: int = 2
-    position_pairs: int = 0
     diffusion_blocks: int = 0
-    heat_bias_pairs: int = 0
     seed: int = 0
     device: str = "auto"
 
@@ -242,9 +240,7 @@ def fit_and_time(
             in_features=len(mean), n_classes=len(label_names), width=train.width, depth=train.depth,
             heads=train.heads, patch_size=config.patch_size, dropout=train.dropout, embed_norm=train.embed_norm,
             coarse_levels=config.n_levels - 1 if train.coarse_context else 0, detach_share=train.detach_share,
-            spectral_pairs=SPECTRUM_PAIRS if train.position_pairs or train.diffusion_blocks or train.heat_bias_pairs else 0,
-            position_pairs=train.position_pairs, diffusion_blocks=train.diffusion_blocks,
-            heat_bias_pairs=train.heat_bias_pairs,
+            spectral_pairs=SPECTRUM_PAIRS if train.diffusion_blocks else 0, diffusion_blocks=train.diffusion_blocks,
         )
     ).to(device)
     model = Segmenter(network, config, mean, std, list(label_names))

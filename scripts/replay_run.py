@@ -33,8 +33,11 @@ REPO = Path(__file__).resolve().parent.parent
 RETRAIN = """
 import json, sys
 import torch
-from anseg.study.runner import train_and_evaluate
-from anseg.study.store import Experiment
+try:
+    from anseg.study.runner import train_and_evaluate
+    from anseg.study.store import Experiment
+except ImportError:  # a revision from before the study had a folder of its own
+    from anseg.experiments import Experiment, train_and_evaluate
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig
 run = json.load(sys.stdin)

@@ -271,51 +271,29 @@ def test_learned_diffusion_ignores_the_signs_of_the_eigenvectors():
     assert not torch.allclose(model(x, layout, spectrum=spectrum).logits, model(x, layout, spectrum=other).logits)
 
 
-def test_spectral_positions_flip_signs_in_training_only():
-    model, x, layout, spectrum = spectral_problem(position_pairs=4)
-    with torch.no_grad():
-        assert torch.equal(model(x, layout, spectrum=spectrum).logits, model(x, layout, spectrum=spectrum).logits)
-        model.train()
-        torch.manual_seed(3)
-        outputs = {tuple(model(x, layout, spectrum=spectrum).logits[0].tolist()) for _ in range(8)}
-    assert len(outputs) > 1  # 8 draws of 4 signs: the positions moved
-
-
 def test_a_model_that_reads_a_spectrum_refuses_to_run_without_one():
     model, x, layout, spectrum = spectral_problem(diffusion_blocks=1)
     with pytest.raises(ValueError, match="spectrum of 12 eigenpairs"):
         model(x, layout)
-    with pytest.raises(ValueError, match="must exceed position_pairs"):
-        ModelConfig(in_features=5, n_classes=3, spectral_pairs=4, position_pairs=4)
+    with pytest.raises(ValueError, match="need a spectrum"):
+        ModelConfig(in_features=5, n_classes=3, diffusion_blocks=1)
+
+
+def test_a_model_file_with_a_retired_switch_loads_where_it_was_off_and_is_refused_where_it_was_on(tmp_path):
+    model, x, layout, spectrum = spectral_problem(diffusion_blocks=1)
+    save(model, tmp_path / "m.pt")
+    payload = torch.load(tmp_path / "m.pt", weights_only=True)
+    torch.save({**payload, "config": {**payload["config"], "position_pairs": 0}}, tmp_path / "off.pt")
+    assert torch.equal(load(tmp_path / "off.pt")(x, layout, spectrum=spectrum).logits,
+                       model(x, layout, spectrum=spectrum).logits)
+    torch.save({**payload, "config": {**payload["config"], "heat_bias_pairs": 6}}, tmp_path / "on.pt")
+    with pytest.raises(ValueError, match="retired"):
+        load(tmp_path / "on.pt")
 
 
 def test_a_spectral_model_saves_and_loads(tmp_path):
-    model, x, layout, spectrum = spectral_problem(diffusion_blocks=1, position_pairs=3)
+    model, x, layout, spectrum = spectral_problem(diffusion_blocks=1)
     save(model, tmp_path / "m.pt")
     again = load(tmp_path / "m.pt")
     assert torch.equal(model(x, layout, spectrum=spectrum).logits, again(x, layout, spectrum=spectrum).logits)
 
-
-def test_heat_bias_starts_off_ignores_signs_and_is_what_the_attention_reads():
-    model, x, layout, spectrum = spectral_problem(heat_bias_pairs=6)
-    plain = AttentionSegmenter(replace(model.config, heat_bias_pairs=0, spectral_pairs=0)).eval()
-    plain.load_state_dict({k: v for k, v in model.state_dict().items() if k != "heat_weight"})
-    out, reference = model(x, layout, spectrum=spectrum), plain(x, layout)
-    torch.testing.assert_close(out.logits, reference.logits)  # zero weights: plain attention
-    torch.testing.assert_close(out.attention, reference.attention)
-    with torch.no_grad():
-        model.heat_weight.normal_(0, 3.0)
-    biased = model(x, layout, spectrum=spectrum)
-    assert not torch.allclose(biased.logits, reference.logits, atol=1e-4)
-    flipped = spectrum._replace(basis=spectrum.basis * torch.tensor([1.0, -1.0] * 6))
-    torch.testing.assert_close(model(x, layout, spectrum=flipped).logits, biased.logits, atol=1e-5, rtol=1e-5)
-    # the received attention is the mass of softmax(q.k / sqrt(d) + bias), checked against the dense matrix
-    share = torch.ones(len(x))
-    patch = torch.as_tensor(layout.patch_of_face)
-    extra_q, extra_k = model._heat_columns(spectrum, share / torch.bincount(patch)[patch], patch, layout.n_patches)
-    q, k = torch.randn(2, 2, layout.n_patches, 8).unbind(0)
-    bias = extra_q[0] @ extra_k.T  # (H, T, T)
-    dense = torch.softmax(q @ k.transpose(1, 2) / math.sqrt(8) + bias, dim=-1).mean(dim=(0, 1))
-    q_aug = torch.cat([q, extra_q[0] * math.sqrt(8)], -1)
-    k_aug = torch.cat([k, extra_k.expand(2, -1, -1)], -1)
-    torch.testing.assert_close(received_attention(q_aug, k_aug, scale=1 / math.sqrt(8)), dense, atol=1e-6, rtol=1e-5)

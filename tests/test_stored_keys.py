@@ -1,41 +1,27 @@
 """Every stored run is found again: its key, recomputed from the settings it records, is the key it is stored under.
 
-A rename, a moved module or a new setting must not change what decides a
-key, or the study would retrain what it already holds. Validation cells
-add their fold to the data options, as :class:`anseg.study.validate.Cell` does.
+A rename, a moved module, a new setting or a retired switch must not change
+what decides a key, or the study would retrain what it already holds.
+Validation cells add their fold to the data options, as
+:class:`anseg.study.validate.Cell` does. A record that names a retired switch
+switched on cannot be read by today's code (it replays at its own revision).
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import fields
 
 import pytest
 
-from anseg.pipeline import SegmentConfig
-from anseg.study.store import REPO, SETTINGS_ADDED_LATER, Experiment
-from anseg.train import TrainConfig
+from anseg.study.store import REPO, Experiment, recorded_settings
 
 STORES = ("results/runs", "results/validation/runs")
 
 
-def typed(config_class, part: str, recorded: dict):
-    """The config a record describes, or None where it names a setting this code lacks.
-
-    Lists come back as tuples; a setting added after the record was stored
-    takes the value older results ran with (:data:`SETTINGS_ADDED_LATER`).
-    """
-    known = {f.name for f in fields(config_class)}
-    if set(recorded) - known:
-        return None
-    defaults = config_class()
-    values = {**{k: v for k, v in SETTINGS_ADDED_LATER[part].items() if k in known}, **recorded}
-    return config_class(**{k: tuple(v) if isinstance(getattr(defaults, k), tuple) else v for k, v in values.items()})
-
-
 def recomputed_key(record: dict) -> str | None:
-    segment, train = typed(SegmentConfig, "segment", record["segment"]), typed(TrainConfig, "train", record["train"])
-    if segment is None or train is None:
+    try:
+        segment, train = recorded_settings(record)
+    except ValueError:
         return None
     options = dict(record.get("dataset_options") or {})
     if "fold" in record:  # a validation cell
@@ -49,7 +35,14 @@ def test_every_stored_run_keeps_its_key(store):
     records = [json.loads(p.read_text()) for p in sorted((REPO / store).glob("*.json"))]
     if not records:
         pytest.skip(f"nothing stored under {store}")
-    moved = [r["key"] for r in records if recomputed_key(r) not in (r["key"], None)]
-    unreadable = [r["key"] for r in records if recomputed_key(r) is None]
-    assert moved == []
+    keys = {r["key"]: recomputed_key(r) for r in records}
+    assert [stored for stored, key in keys.items() if key not in (stored, None)] == []
+    unreadable = [stored for stored, key in keys.items() if key is None]
     assert len(unreadable) <= len(records) // 10, f"{len(unreadable)} records name settings this code lacks"
+
+
+def test_a_retired_switch_reads_where_it_was_off_and_is_refused_where_it_was_on():
+    record = {"key": "k", "segment": {}, "train": {"position_pairs": 0, "epochs": 3}}
+    assert recorded_settings(record)[1].epochs == 3
+    with pytest.raises(ValueError, match="replay it at its own revision"):
+        recorded_settings({**record, "train": {"position_pairs": 8}})

@@ -239,7 +239,7 @@ def test_spatial_context_trains_and_carries_the_eigenbasis_to_every_level(split)
 
     train_set, test_set = split
     model = fit(train_set[:2], train_set[0].label_names, SMALL,
-                TrainConfig(position_pairs=8, diffusion_blocks=1, epochs=2, width=16, depth=1), progress=False)
+                TrainConfig(diffusion_blocks=1, epochs=2, width=16, depth=1), progress=False)
     assert model.network.config.spectral_pairs == 64 and len(model.network.diffusion) == 1
     result = segment(test_set[0].mesh, model)
     assert result.labels.shape == (test_set[0].mesh.n_faces,)
@@ -252,7 +252,7 @@ def test_spatial_context_trains_and_carries_the_eigenbasis_to_every_level(split)
 
 def test_spatial_context_switches_leave_the_keys_alone_at_zero():
     base = _v1_human()
-    assert replace(base, train=replace(base.train, position_pairs=0, diffusion_blocks=0)).key() == base.key()
+    assert replace(base, train=replace(base.train, diffusion_blocks=0)).key() == base.key()
     assert replace(base, train=replace(base.train, diffusion_blocks=1)).key() != base.key()
 
 

@@ -15,7 +15,7 @@ import hashlib
 import json
 import os
 import platform
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +23,7 @@ import torch
 
 from anseg import features
 from anseg.cache import atomic_write
+from anseg.model import RETIRED
 from anseg.pipeline import SegmentConfig
 from anseg.train import TrainConfig
 
@@ -34,8 +35,7 @@ SETTINGS_ADDED_LATER = {
     "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
                 "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz"},
     "train": {"embed_norm": False, "schedule": "constant", "coarse_context": False, "detach_share": False,
-              "average_last": 0, "position_pairs": 0, "diffusion_blocks": 0,
-              "heat_bias_pairs": 0},
+              "average_last": 0, "diffusion_blocks": 0},
 }
 # The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
 # from other features has other keys, so no stored result or model is reused across a change of features.
@@ -67,6 +67,30 @@ class Experiment:
         text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
                            **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def recorded_settings(record: dict) -> tuple[SegmentConfig, TrainConfig]:
+    """The settings a stored result ran with, as today's classes.
+
+    A setting added since takes the value the older results ran with
+    (:data:`SETTINGS_ADDED_LATER`), a retired switch is dropped where it was
+    off (:data:`anseg.model.RETIRED`), and lists come back as tuples. A
+    setting this code no longer has in any other form is a ValueError: such a
+    result replays at its own revision only.
+    """
+    configs = []
+    for part, config_class in (("segment", SegmentConfig), ("train", TrainConfig)):
+        known = {f.name: f for f in fields(config_class)}
+        values = {**{k: v for k, v in SETTINGS_ADDED_LATER[part].items() if k in known}, **record[part]}
+        retired_on = {k: v for k, v in values.items() if k in RETIRED and v != RETIRED[k]}
+        unknown = sorted(set(values) - set(known) - set(RETIRED))
+        if retired_on or unknown:
+            raise ValueError(f"{record.get('key')}: settings this code no longer has "
+                             f"({retired_on or unknown}); replay it at its own revision")
+        defaults = config_class()
+        configs.append(config_class(**{k: tuple(v) if isinstance(getattr(defaults, k), tuple) else v
+                                       for k, v in values.items() if k in known}))
+    return configs[0], configs[1]
 
 
 def environment() -> dict:
