@@ -24,11 +24,10 @@ both, for looking. Sizes and mesh quality as measured: ``docs/decisions.md``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from anseg.datasets.common import SPLITS, DatasetError, LabeledMesh, progress_bar
+from anseg.datasets.implicit import Ellipsoid, Junction, Revolved, Shape, Tube, TubePath, unit
 from anseg.mesh import Mesh, MeshError, repair
 
 CATEGORIES = ("figure", "vessel")
@@ -56,202 +55,6 @@ class SyntheticShapeError(RuntimeError):
     """The generator found no valid shape for a seed within its allowed number of draws."""
 
 
-# ---------------------------------------------------------------- parts
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-@dataclass
-class _Tube:
-    """A tapered capsule from ``a`` (radius ``ra``) to ``b`` (radius ``rb``)."""
-
-    a: np.ndarray
-    b: np.ndarray
-    ra: float
-    rb: float
-    label: int
-
-    def distance(self, p: np.ndarray) -> np.ndarray:
-        ab = self.b - self.a
-        t = np.clip(((p - self.a) @ ab) / (ab @ ab), 0.0, 1.0)
-        return np.linalg.norm(p - (self.a + t[:, None] * ab), axis=1) - (self.ra + t * (self.rb - self.ra))
-
-    def labels(self, p: np.ndarray) -> np.ndarray:
-        return np.full(len(p), self.label)
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        r = max(self.ra, self.rb)
-        return np.minimum(self.a, self.b) - r, np.maximum(self.a, self.b) + r
-
-    def skeleton(self) -> tuple[np.ndarray, np.ndarray]:
-        """Sample points on the axis and the radius there; the root end (in the junction with the parent) is left out."""
-        t = np.linspace(0.3, 1.0, 8)
-        return self.a + t[:, None] * (self.b - self.a), self.ra + t * (self.rb - self.ra)
-
-
-@dataclass
-class _Ellipsoid:
-    """An ellipsoid with semi-axes ``radii`` along the columns of ``frame``."""
-
-    centre: np.ndarray
-    radii: np.ndarray
-    label: int
-    frame: np.ndarray = field(default_factory=lambda: np.eye(3))
-
-    def distance(self, p: np.ndarray) -> np.ndarray:
-        # a close bound on the Euclidean distance, exact on the surface
-        q = (p - self.centre) @ self.frame
-        k0 = np.linalg.norm(q / self.radii, axis=1)
-        k1 = np.linalg.norm(q / self.radii**2, axis=1)
-        return k0 * (k0 - 1.0) / np.maximum(k1, 1e-12)
-
-    def labels(self, p: np.ndarray) -> np.ndarray:
-        return np.full(len(p), self.label)
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.centre - self.radii.max(), self.centre + self.radii.max()
-
-    def skeleton(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.centre[None], np.array([self.radii.min()])
-
-
-@dataclass
-class _Revolved:
-    """The solid swept by a (rho, z) profile polyline turning about the z axis.
-
-    The polyline runs counter-clockwise round the solid's half-section from a
-    point on the axis to another point on the axis (the axis closes it but is
-    no surface). ``segment_labels`` labels each segment; a point takes the
-    label of the nearest one.
-    """
-
-    profile: np.ndarray
-    segment_labels: np.ndarray
-
-    def __post_init__(self):
-        from scipy.spatial import cKDTree
-
-        tangent = np.diff(self.profile, axis=0)
-        self._segment_normals = _unit(np.stack([tangent[:, 1], -tangent[:, 0]], axis=1))
-        # pseudo-normals at the vertices give the right inside/outside sign when the nearest point is a vertex
-        padded = np.concatenate([self._segment_normals[:1], self._segment_normals, self._segment_normals[-1:]])
-        self._vertex_normals = _unit(padded[:-1] + padded[1:])
-        self._tree = cKDTree(self.profile)
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        r = self.profile[:, 0].max()
-        return np.array([-r, -r, self.profile[:, 1].min()]), np.array([r, r, self.profile[:, 1].max()])
-
-    def _nearest(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distance in the half-section, and the nearest segment, of each point."""
-        q = np.stack([np.hypot(p[:, 0], p[:, 1]), p[:, 2]], axis=1)
-        # the two segments at the nearest vertex hold a locally nearest point, where the sign test is right;
-        # on the finely resampled profile its distance is the true one near the surface
-        _, vertex = self._tree.query(q)
-        candidates = np.clip(np.stack([vertex - 1, vertex], axis=1), 0, len(self.profile) - 2)
-        a = self.profile[candidates]
-        ab = self.profile[candidates + 1] - a
-        rel = q[:, None, :] - a
-        t = np.clip((rel * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
-        offset = rel - t[..., None] * ab
-        dist = np.linalg.norm(offset, axis=-1)
-        rows = np.arange(len(q))
-        pick = dist.argmin(axis=1)
-        segment, t, offset = candidates[rows, pick], t[rows, pick], offset[rows, pick]
-        normal = np.where(
-            (t <= 0.0)[:, None], self._vertex_normals[segment],
-            np.where((t >= 1.0)[:, None], self._vertex_normals[segment + 1], self._segment_normals[segment]),
-        )
-        sign = np.where((offset * normal).sum(axis=1) < 0, -1.0, 1.0)
-        return sign * dist[rows, pick], segment
-
-    def distance(self, p: np.ndarray) -> np.ndarray:
-        return self._nearest(p)[0]
-
-    def labels(self, p: np.ndarray) -> np.ndarray:
-        return self.segment_labels[self._nearest(p)[1]]
-
-
-@dataclass
-class _TubePath:
-    """A tube of radius ``radius`` along the polyline ``path`` (P, 3), with round ends."""
-
-    path: np.ndarray
-    radius: float
-    label: int
-
-    def distance(self, p: np.ndarray) -> np.ndarray:
-        a, ab = self.path[:-1], np.diff(self.path, axis=0)
-        rel = p[:, None, :] - a[None]
-        t = np.clip((rel * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
-        return np.linalg.norm(rel - t[..., None] * ab, axis=-1).min(axis=1) - self.radius
-
-    def labels(self, p: np.ndarray) -> np.ndarray:
-        return np.full(len(p), self.label)
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.path.min(axis=0) - self.radius, self.path.max(axis=0) + self.radius
-
-
-def _smooth_min(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
-    """Polynomial smooth minimum: a fillet of size about ``k``; equals min(a, b) where they differ by more than k."""
-    h = np.maximum(k - np.abs(a - b), 0.0) / k
-    return np.minimum(a, b) - 0.25 * k * h * h
-
-
-@dataclass
-class _Junction:
-    """Where the tessellation is refined (where parts meet): a point, or a horizontal ring about the z axis.
-
-    ``reach`` is the distance over which the refinement fades; ``ring_radius`` > 0 makes a ring.
-    """
-
-    centre: np.ndarray
-    reach: float
-    ring_radius: float = 0.0
-
-    def nearest(self, p: np.ndarray) -> np.ndarray:
-        if self.ring_radius == 0.0:
-            return np.broadcast_to(self.centre, p.shape)
-        scale = self.ring_radius / np.maximum(np.hypot(p[:, 0], p[:, 1]), 1e-9)
-        return np.stack([p[:, 0] * scale, p[:, 1] * scale, np.full(len(p), self.centre[2])], axis=1)
-
-
-@dataclass
-class _Shape:
-    """A shape before meshing: parts in blend order, the fillet size of each later part, junctions, genus."""
-
-    parts: list
-    blends: list[float]
-    junctions: list[_Junction]
-    genus: int
-
-    def field(self, p: np.ndarray) -> np.ndarray:
-        """The implicit function: negative inside, roughly the distance to the surface."""
-        value = self.parts[0].distance(p)
-        for part, k in zip(self.parts[1:], self.blends):
-            lower, upper = part.bounds()
-            box_gap = np.linalg.norm(np.maximum(np.maximum(lower - p, p - upper), 0.0), axis=1)
-            # a part farther than value + k leaves the smooth minimum as it is: skip those points
-            near = np.flatnonzero(box_gap < value + k)
-            value[near] = _smooth_min(value[near], part.distance(p[near]), k)
-        return value
-
-    def labels(self, p: np.ndarray) -> np.ndarray:
-        """The label of the part nearest to each point."""
-        nearest = np.stack([part.distance(p) for part in self.parts]).argmin(axis=0)
-        out = np.empty(len(p), dtype=np.int64)
-        for i, part in enumerate(self.parts):
-            chosen = nearest == i
-            if chosen.any():
-                out[chosen] = part.labels(p[chosen])
-        return out
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        lows, highs = zip(*(part.bounds() for part in self.parts))
-        return np.min(lows, axis=0), np.max(highs, axis=0)
-
-
 # ---------------------------------------------------------------- figure
 def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     """Rotation of ``v`` about the unit ``axis`` (Rodrigues)."""
@@ -261,10 +64,10 @@ def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
 def _bend(direction: np.ndarray, towards: np.ndarray, angle: float) -> np.ndarray:
     """``direction`` turned by ``angle`` in the plane it spans with ``towards``."""
     perpendicular = towards - (towards @ direction) * direction
-    return np.cos(angle) * direction + np.sin(angle) * _unit(perpendicular)
+    return np.cos(angle) * direction + np.sin(angle) * unit(perpendicular)
 
 
-def _figure(rng: np.random.Generator) -> _Shape | None:
+def _figure(rng: np.random.Generator) -> Shape | None:
     """Draw proportions and a pose; None when two parts that must stay apart come too close."""
     lab = {name: i for i, name in enumerate(LABEL_NAMES["figure"])}
     uniform = lambda lo, hi: float(rng.uniform(lo, hi))  # noqa: E731
@@ -283,14 +86,14 @@ def _figure(rng: np.random.Generator) -> _Shape | None:
         return torso_radii[0] * np.sqrt(max(1.0 - ((z - torso_c[2]) / torso_radii[2]) ** 2, 0.0))
 
     neck_base = torso_c + np.array([0.0, 0.0, 0.9 * torso_radii[2]])
-    neck_dir = _unit(up + np.array([uniform(-0.25, 0.25), uniform(-0.15, 0.3), 0.0]))
+    neck_dir = unit(up + np.array([uniform(-0.25, 0.25), uniform(-0.15, 0.3), 0.0]))
     head_c = neck_base + neck_dir * (0.1 + head_r)
-    neck = _Tube(neck_base - 0.04 * neck_dir, head_c, 0.05 + 0.2 * head_r, 0.5 * head_r, lab["head"])
-    head = _Ellipsoid(head_c, head_r * np.array([0.9, 1.0, 1.15]), lab["head"])
-    parts = [_Ellipsoid(torso_c, torso_radii, lab["torso"]), neck, head]
+    neck = Tube(neck_base - 0.04 * neck_dir, head_c, 0.05 + 0.2 * head_r, 0.5 * head_r, lab["head"])
+    head = Ellipsoid(head_c, head_r * np.array([0.9, 1.0, 1.15]), lab["head"])
+    parts = [Ellipsoid(torso_c, torso_radii, lab["torso"]), neck, head]
     blends = [0.04, 0.03]
     touching = [(0, 1), (1, 2)]
-    junctions = [_Junction(neck_base, 2.5 * neck.ra)]
+    junctions = [Junction(neck_base, 2.5 * neck.ra)]
 
     shoulder_z = torso_c[2] + 0.62 * torso_radii[2]
     for side in (-1.0, 1.0):
@@ -303,17 +106,17 @@ def _figure(rng: np.random.Generator) -> _Shape | None:
         f = _bend(d, bend_towards, angle(0, 110))
         wrist = elbow + forearm * f
         hand_len = uniform(0.08, 0.11)
-        palm = _unit(np.cross(f, forward if abs(f @ forward) < 0.95 else up))
+        palm = unit(np.cross(f, forward if abs(f @ forward) < 0.95 else up))
         hand_frame = np.stack([f, palm, np.cross(f, palm)], axis=1)
         first = len(parts)
         parts += [
-            _Tube(shoulder, elbow, arm_r * 1.15, arm_r, lab["upper_arm"]),
-            _Tube(elbow, wrist, arm_r, 0.85 * arm_r, lab["lower_arm"]),
-            _Ellipsoid(wrist + 0.8 * hand_len * f, hand_len * np.array([1.0, 0.6, 0.4]), lab["hand"], hand_frame),
+            Tube(shoulder, elbow, arm_r * 1.15, arm_r, lab["upper_arm"]),
+            Tube(elbow, wrist, arm_r, 0.85 * arm_r, lab["lower_arm"]),
+            Ellipsoid(wrist + 0.8 * hand_len * f, hand_len * np.array([1.0, 0.6, 0.4]), lab["hand"], hand_frame),
         ]
         blends += [0.06, 0.5 * arm_r, 0.4 * arm_r]
         touching += [(0, first), (first, first + 1), (first + 1, first + 2)]
-        junctions += [_Junction(shoulder, 3.0 * arm_r), _Junction(elbow, 2.5 * arm_r), _Junction(wrist, 2.5 * arm_r)]
+        junctions += [Junction(shoulder, 3.0 * arm_r), Junction(elbow, 2.5 * arm_r), Junction(wrist, 2.5 * arm_r)]
 
         # leg: spread and swing at the hip, the knee bends backwards, the foot points forwards
         hip = np.array([side * hip_offset, 0.0, hip_z])
@@ -324,16 +127,16 @@ def _figure(rng: np.random.Generator) -> _Shape | None:
         toe = ankle + uniform(0.17, 0.24) * _bend(s, forward, angle(75, 100))
         first = len(parts)
         parts += [
-            _Tube(hip, knee, thigh_r, 0.8 * thigh_r, lab["upper_leg"]),
-            _Tube(knee, ankle, 0.8 * thigh_r, 0.6 * thigh_r, lab["lower_leg"]),
-            _Tube(ankle, toe, 0.65 * thigh_r, 0.55 * thigh_r, lab["foot"]),
+            Tube(hip, knee, thigh_r, 0.8 * thigh_r, lab["upper_leg"]),
+            Tube(knee, ankle, 0.8 * thigh_r, 0.6 * thigh_r, lab["lower_leg"]),
+            Tube(ankle, toe, 0.65 * thigh_r, 0.55 * thigh_r, lab["foot"]),
         ]
         blends += [0.06, 0.4 * thigh_r, 0.3 * thigh_r]
         touching += [(0, first), (first, first + 1), (first + 1, first + 2)]
-        junctions += [_Junction(hip, 2.5 * thigh_r), _Junction(knee, 2.5 * thigh_r), _Junction(ankle, 2.5 * thigh_r)]
+        junctions += [Junction(hip, 2.5 * thigh_r), Junction(knee, 2.5 * thigh_r), Junction(ankle, 2.5 * thigh_r)]
     if not _parts_apart(parts, touching, gap=0.04):
         return None
-    return _Shape(parts, blends, junctions, genus=0)
+    return Shape(parts, blends, junctions, genus=0)
 
 
 def _parts_apart(parts: list, touching: list[tuple[int, int]], gap: float) -> bool:
@@ -348,7 +151,7 @@ def _parts_apart(parts: list, touching: list[tuple[int, int]], gap: float) -> bo
 
 
 # ---------------------------------------------------------------- vessel
-def _vessel(rng: np.random.Generator) -> _Shape | None:
+def _vessel(rng: np.random.Generator) -> Shape | None:
     """Draw a profile and one or two handles; None when a handle would be too short or cut into the opening."""
     from scipy.interpolate import PchipInterpolator
 
@@ -402,18 +205,18 @@ def _vessel(rng: np.random.Generator) -> _Shape | None:
     )
     segment_labels[len(base) + len(outer) :] = lab["lip"]  # over the rim and into the opening
     profile, segment_labels = _resample(profile, segment_labels, spacing=0.01)
-    parts = [_Revolved(profile, segment_labels)]
+    parts = [Revolved(profile, segment_labels)]
     blends = []
-    junctions = [_Junction(np.array([0.0, 0.0, zj]), 0.08 * height, float(radius_at(zj))) for zj in (foot_top, neck_low, lip_low)]
+    junctions = [Junction(np.array([0.0, 0.0, zj]), 0.08 * height, float(radius_at(zj))) for zj in (foot_top, neck_low, lip_low)]
     # not a junction, but a thin rounded feature that real models tessellate finely too
-    junctions.append(_Junction(np.array([0.0, 0.0, rim]), 2.5 * lip_r, float(radius_at(rim)) - lip_r))
+    junctions.append(Junction(np.array([0.0, 0.0, rim]), 2.5 * lip_r, float(radius_at(rim)) - lip_r))
 
     # a handle leaves the body and enters the neck along the wall's normal (square to the axis
     # on the neck, so it cannot reach the opening) and sweeps out far enough to clear the wall
     root_depth = 1.5 * tube
     roots = np.array([[float(radius_at(z)) - root_depth, z] for z in (z1, z2)])
     slopes = radius_at.derivative()([z1, z2])
-    normals = _unit(np.stack([np.ones(2), -slopes], axis=1))
+    normals = unit(np.stack([np.ones(2), -slopes], axis=1))
     between = np.linspace(z1, z2, 20)
     bulge = max((radius_at(between) - np.interp(between, [z1, z2], roots[:, 0])).max(), 0.0)
     # a cubic Bezier curve reaches about 3/4 of the way to its middle control points
@@ -425,10 +228,10 @@ def _vessel(rng: np.random.Generator) -> _Shape | None:
     for turn in first_angle + np.pi * np.arange(n_handles):
         outward = np.array([np.cos(turn), np.sin(turn), 0.0])
         path = curve[:, :1] * outward + curve[:, 1:] * np.array([0.0, 0.0, 1.0])
-        parts.append(_TubePath(path, tube, lab["handle"]))
+        parts.append(TubePath(path, tube, lab["handle"]))
         blends.append(0.6 * tube)
-        junctions += [_Junction(path[i] + root_depth * outward, 3.0 * tube) for i in (0, -1)]
-    return _Shape(parts, blends, junctions, genus=n_handles)
+        junctions += [Junction(path[i] + root_depth * outward, 3.0 * tube) for i in (0, -1)]
+    return Shape(parts, blends, junctions, genus=n_handles)
 
 
 def _resample(polyline: np.ndarray, segment_labels: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -445,14 +248,14 @@ _BUILDERS = {"figure": _figure, "vessel": _vessel}
 
 
 # ---------------------------------------------------------------- meshing
-def _junction_weights(points: np.ndarray, junctions: list[_Junction]) -> tuple[np.ndarray, np.ndarray]:
+def _junction_weights(points: np.ndarray, junctions: list[Junction]) -> tuple[np.ndarray, np.ndarray]:
     """For each junction, the offset of every point from it (J, N, 3) and a Gaussian weight of that offset (J, N)."""
     offsets = np.stack([points - junction.nearest(points) for junction in junctions])
     reach = np.array([junction.reach for junction in junctions])[:, None]
     return offsets, np.exp(-(offsets * offsets).sum(axis=-1) / reach**2)
 
 
-def _contract(points: np.ndarray, junctions: list[_Junction]) -> np.ndarray:
+def _contract(points: np.ndarray, junctions: list[Junction]) -> np.ndarray:
     """Pull points towards the junctions, so that a regular grid so mapped has cells _REFINE times finer at a junction.
 
     A single junction's map is one-to-one (its pull is below 1).
@@ -461,12 +264,12 @@ def _contract(points: np.ndarray, junctions: list[_Junction]) -> np.ndarray:
     return points - _PULL * (weights[..., None] * offsets).sum(axis=0)
 
 
-def _edge_density(points: np.ndarray, junctions: list[_Junction]) -> np.ndarray:
+def _edge_density(points: np.ndarray, junctions: list[Junction]) -> np.ndarray:
     """Edges per unit length that the contracted grid gives, relative to far from every junction (_REFINE at a junction)."""
     return 1.0 / (1.0 - _PULL * np.minimum(_junction_weights(points, junctions)[1].sum(axis=0), 1.0))
 
 
-def _refined_area(shape: _Shape, lower: np.ndarray, upper: np.ndarray, n: int = 32) -> float:
+def _refined_area(shape: Shape, lower: np.ndarray, upper: np.ndarray, n: int = 32) -> float:
     """The surface integral of the squared edge density: the area in units of far-field cells.
 
     Measured on a coarse grid as the volume of a thin shell about the zero set over its thickness.
@@ -489,7 +292,7 @@ def _largest_component(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return faces[face_component == np.bincount(face_component).argmax()]
 
 
-def _project(shape: _Shape, points: np.ndarray) -> np.ndarray:
+def _project(shape: Shape, points: np.ndarray) -> np.ndarray:
     """One Newton step of each point onto the zero set, along the field's (finite-difference) gradient."""
     step = 1e-5
     value = shape.field(points)
@@ -497,7 +300,7 @@ def _project(shape: _Shape, points: np.ndarray) -> np.ndarray:
     return points - (value / np.maximum((gradient * gradient).sum(axis=1), 1e-12))[:, None] * gradient
 
 
-def _relax(mesh: Mesh, shape: _Shape, steps: int) -> Mesh:
+def _relax(mesh: Mesh, shape: Shape, steps: int) -> Mesh:
     """Even out the marching-cubes slivers while keeping the junction refinement.
 
     Each step moves every vertex, in its tangent plane, towards the average of
@@ -515,13 +318,13 @@ def _relax(mesh: Mesh, shape: _Shape, steps: int) -> Mesh:
         density = _edge_density(vertices, shape.junctions)
         weights = coo_matrix((density[rows] * density[cols], (rows, cols)), shape=(len(vertices),) * 2).tocsr()
         move = (weights @ vertices) / np.asarray(weights.sum(axis=1)) - vertices
-        normals = _unit(incidence @ Mesh(vertices, mesh.faces).face_normals + 1e-12)
+        normals = unit(incidence @ Mesh(vertices, mesh.faces).face_normals + 1e-12)
         move -= (move * normals).sum(axis=1, keepdims=True) * normals
         vertices = _project(shape, vertices + _RELAX_RATE * move)
     return Mesh(vertices, mesh.faces)
 
 
-def _mesh_shape(shape: _Shape, n_faces: int) -> Mesh:
+def _mesh_shape(shape: Shape, n_faces: int) -> Mesh:
     """Marching cubes on a grid contracted about the junctions, sized for about ``n_faces`` away from them; then relaxed."""
     import igl
 
@@ -549,7 +352,7 @@ def _signed_volume(mesh: Mesh) -> float:
     return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6.0)
 
 
-def _problem(mesh: Mesh, labels: np.ndarray, shape: _Shape, n_labels: int) -> str | None:
+def _problem(mesh: Mesh, labels: np.ndarray, shape: Shape, n_labels: int) -> str | None:
     """Why a generated mesh is unusable, or None."""
     try:
         mesh.validate()
