@@ -430,21 +430,23 @@ def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bo
                    **settings) -> dict[str, np.ndarray]:
     """Each requested group's (F, d) float32 block, by name, in the order asked.
 
-    With ``cache=True`` the blocks are cut from :func:`compute`'s cached
-    matrix; the default recomputes (what coarse, throw-away meshes want).
-    ``progress`` shows a bar, group by group, for a mesh of at least
-    :data:`PROGRESS_MIN_FACES` faces when stderr is a terminal.
+    With ``cache=True`` the blocks come from the disk cache when it holds them
+    (one entry per mesh and set of groups, as :func:`compute` keeps it) and go
+    into it when computed; the default recomputes (what coarse, throw-away
+    meshes want). ``progress`` shows a bar, group by group, for a mesh of at
+    least :data:`PROGRESS_MIN_FACES` faces when stderr is a terminal.
     Raises MeshError for a mesh that fails ``validate()`` (or, should it
     happen, whose features come out non-finite) and ValueError for unknown
     groups or settings.
     """
     groups = _check_groups(groups)
     cfg = _settings(settings)
-    if cache:
-        matrix = compute(mesh, groups, cache=True, progress=progress, **settings)
-        widths = np.cumsum([len(_group_columns(g, cfg)) for g in groups])[:-1]
-        return dict(zip(groups, np.split(matrix, widths, axis=1)))
     mesh.validate()
+    widths = [len(_group_columns(g, cfg)) for g in groups]
+    path = _cache_path(mesh, groups, cfg) if cache else None
+    matrix = read_checked_array(path, (mesh.n_faces, sum(widths))) if path is not None else None
+    if matrix is not None:
+        return dict(zip(groups, np.split(matrix, np.cumsum(widths)[:-1], axis=1)))
     geometry = _Geometry(mesh, cfg)
     # a bar, group by group, only where it is worth watching: a large mesh, and stderr a terminal (tqdm's None)
     quiet = True if not progress or mesh.n_faces < PROGRESS_MIN_FACES else None
@@ -455,6 +457,9 @@ def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bo
     bad = [g for g, block in blocks.items() if not np.isfinite(block).all()]
     if bad:
         raise MeshError(f"feature groups {bad} came out non-finite for {mesh!r}; please report the mesh")
+    if path is not None:
+        matrix = np.concatenate(list(blocks.values()), axis=1)
+        atomic_write(path, lambda tmp: write_checked_array(tmp, matrix))
     return blocks
 
 
@@ -468,18 +473,7 @@ def compute(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bool = Tr
     neither reads nor writes the cache. Settings are the fields of
     :class:`FeatureSettings`; errors as in :func:`compute_groups`.
     """
-    groups = _check_groups(groups)
-    cfg = _settings(settings)
-    mesh.validate()
-    path = _cache_path(mesh, groups, cfg) if cache else None
-    if path is not None:
-        cached = read_checked_array(path, (mesh.n_faces, len(feature_names(groups, **settings))))
-        if cached is not None:
-            return cached
-    matrix = np.concatenate(list(compute_groups(mesh, groups, progress=progress, **settings).values()), axis=1)
-    if path is not None:
-        atomic_write(path, lambda tmp: write_checked_array(tmp, matrix))
-    return matrix
+    return np.concatenate(list(compute_groups(mesh, groups, cache, progress, **settings).values()), axis=1)
 
 
 def compute_many(
