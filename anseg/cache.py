@@ -13,7 +13,7 @@ import hashlib
 import os
 import tempfile
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from functools import cache
 from importlib import metadata
 from pathlib import Path
@@ -68,19 +68,38 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Path], None]) -> Path
     The file gets the permissions the umask gives any new file (0666 & ~umask),
     not the owner-only 0600 of the temporary file, so that outputs can be shared as usual.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # the temporary name ends like the final one, for writers that pick the format by suffix
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
-    os.close(fd)
+    atomic_write_all({Path(path): write})
+    return Path(path)
+
+
+def atomic_write_all(writes: Mapping[Path, Callable[[Path], None]]) -> None:
+    """Write several files as one: each to a temporary file beside its target, renamed into place only when all are written.
+
+    A failure or an interruption before the renames leaves every existing
+    file as it was and no temporary file behind, so that a command's outputs
+    never mix two runs. An OSError names the target, never the temporary
+    file, whose name means nothing to whoever chose the target. The renames,
+    each within its target's folder, are the one step not undone.
+    """
+    staged: list[tuple[Path, Path]] = []
+    path = None
     try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+        for path, write in writes.items():
+            path = Path(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            # the temporary name ends like the final one, for writers that pick the format by suffix
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
+            os.close(fd)
+            staged.append((Path(tmp), path))
+            write(Path(tmp))
+            os.chmod(tmp, 0o666 & ~_umask())
+        for tmp, path in staged:
+            os.replace(tmp, path)
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc  # the errno picks the subclass
+    finally:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
 
 
 def write_checked_array(path: Path, array: np.ndarray) -> None:

@@ -9,7 +9,10 @@ Examples::
     anseg features mesh.off -o mesh_features.npy
 
 Data sets are read from ``--data`` or ``$ANSEG_DATA``. Bad input ends with a
-one-line message and a non-zero exit status, never a traceback. Validation
+one-line message and a non-zero exit status, never a traceback, and at once:
+the outputs' folders are checked and the input read before torch is imported
+or anything computed. A command's outputs are written as one: all of them, or
+none (every existing file left as it was). Validation
 studies, which compare settings on training meshes, belong to the study
 (``python -m anseg.study.validate``), not to the library.
 """
@@ -35,6 +38,44 @@ def _non_negative(text: str) -> float:
     return value
 
 
+class _Deferred:
+    """Choices or a default that argparse reads only to check a given value or to print help.
+
+    The modules that define them import torch, which takes seconds; a
+    command that fails on its input should not wait for it.
+    """
+
+    def __init__(self, load):
+        self._load = load
+
+    def __contains__(self, value) -> bool:
+        return value in self._load()
+
+    def __iter__(self):
+        return iter(self._load())
+
+    def __str__(self) -> str:
+        return ",".join(self._load())
+
+
+def _config_names():
+    from anseg.configs import NAMED
+
+    return list(NAMED)
+
+
+def _downsampling_modes():
+    from anseg.pipeline import DOWNSAMPLING_MODES
+
+    return DOWNSAMPLING_MODES
+
+
+def _default_groups():
+    from anseg.pipeline import SegmentConfig
+
+    return SegmentConfig().groups
+
+
 def _add_data_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dataset", default="psb", help="data set name (default: psb; see anseg.datasets.DATASETS)")
     parser.add_argument("--category", default=None, help="category, e.g. Human for psb, figure for synthetic")
@@ -44,11 +85,8 @@ def _add_data_options(parser: argparse.ArgumentParser) -> None:
 
 def _parser() -> argparse.ArgumentParser:
     from anseg import __version__
-    from anseg.configs import NAMED
     from anseg.mesh import SUPPORTED_SUFFIXES
-    from anseg.pipeline import DOWNSAMPLING_MODES, SegmentConfig
 
-    segment_defaults = SegmentConfig()
     mesh_help = f"mesh file ({', '.join(SUPPORTED_SUFFIXES)})"
     parser = argparse.ArgumentParser(prog="anseg", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
@@ -59,11 +97,12 @@ def _parser() -> argparse.ArgumentParser:
                                 description="Train on a split's training meshes and save the model.")
     _add_data_options(train)
     train.add_argument("-o", "--output", required=True, type=Path, help="model file to write (.pt)")
-    train.add_argument("--config", choices=list(NAMED), default="default",
-                       help="named configuration (anseg.configs; default: %(default)s)")
+    train.add_argument("--config", choices=_Deferred(_config_names), default="default", metavar="NAME",
+                       help="named configuration (anseg.configs): %(choices)s (default: %(default)s)")
     train.add_argument("--set", dest="overrides", default="", metavar="FIELD=VALUE[,...]",
                        help="settings on top of the configuration: SegmentConfig fields, TrainConfig ones as train.FIELD")
-    train.add_argument("--mode", choices=DOWNSAMPLING_MODES, help="downsampling mode (default: the configuration's)")
+    train.add_argument("--mode", choices=_Deferred(_downsampling_modes), metavar="MODE",
+                       help="downsampling mode: %(choices)s (default: the configuration's)")
     train.add_argument("--cycles", type=int, help="downsampling cycles N (default: the configuration's)")
     train.add_argument("--ratio", type=float, help="faces kept per cycle (default: the configuration's)")
     train.add_argument("--epochs", type=int, help="epochs (default: the configuration's)")
@@ -91,7 +130,8 @@ def _parser() -> argparse.ArgumentParser:
 
     evaluate = commands.add_parser("evaluate", help="score a trained model on a split's test meshes",
                                    description="Eq. 5 on the test meshes: unit-area (primary), raw-area and face readings.")
-    evaluate.add_argument("model", type=Path, help="model file written by `anseg train`")
+    evaluate.add_argument("model", type=Path, metavar="MODEL",
+                          help="a model file written by `anseg train`, or a pretrained model listed by `anseg models`")
     _add_data_options(evaluate)
     evaluate.add_argument("--json", type=Path, help="also write the scores to this JSON file")
 
@@ -99,27 +139,64 @@ def _parser() -> argparse.ArgumentParser:
                                 description="Write the (F, D) per-face feature matrix as .npy.")
     feats.add_argument("mesh", type=Path, help=mesh_help)
     feats.add_argument("-o", "--output", required=True, type=Path, help=".npy file to write")
-    feats.add_argument("--groups", default=",".join(segment_defaults.groups),
+    feats.add_argument("--groups", default=_Deferred(_default_groups),
                        help="comma-separated feature groups (default: %(default)s)")
     feats.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
     feats.add_argument("--repair", action="store_true",
                        help="repair the mesh first, as `segment --repair` does; rows follow the repaired faces")
 
-    commands.add_parser("models", help="list the pretrained models shipped with anseg",
-                        description="The pretrained models `anseg segment --model NAME` takes, with their model cards' summary.")
+    models = commands.add_parser("models", help="list the pretrained models shipped with anseg",
+                                 description="The pretrained models `anseg segment --model NAME` and `anseg evaluate NAME` "
+                                             "take, with their model cards' summary, code revision and date.")
+    models.add_argument("-v", "--verbose", action="store_true",
+                        help="also each model's label names (read from the model files: slower) and the rest of its card")
     return parser
+
+
+def _model_file(name_or_path) -> Path:
+    """The model file the user names: a file, or a pretrained model's name (`anseg models`); checked without torch."""
+    from anseg import pretrained
+
+    path = Path(name_or_path)
+    if path.is_dir():
+        raise ValueError(f"{path}: is a directory, not a model file")
+    if path.is_file():
+        return path
+    if str(name_or_path) in pretrained.cards():
+        return pretrained.path(str(name_or_path))
+    raise ValueError(f"{path}: no such model file, nor a pretrained model (`anseg models` lists them: "
+                     f"{', '.join(pretrained.names()) or 'none are shipped with this installation'})")
 
 
 def _load_model(path: Path):
     from anseg.pipeline import Segmenter
     from anseg.train import resolve_device
 
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such model file")
     return Segmenter.load(path, device=resolve_device("auto"))
 
 
+def _check_outputs(*paths: Path | None) -> None:
+    """Fail now, before any work, where an output cannot be written: a folder in its place, a file where its folder
+    should be, a folder this process may not write to, or two outputs on one path. Folders that do not exist yet are
+    made when writing."""
+    seen = set()
+    for path in filter(None, paths):
+        if path.resolve() in seen:
+            raise ValueError(f"{path}: given for two outputs")
+        seen.add(path.resolve())
+        if path.is_dir():
+            raise ValueError(f"{path}: is a directory; give a file name")
+        folder = path.absolute().parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not folder.is_dir():
+            raise ValueError(f"{path}: cannot be written: {folder} is a file, not a folder")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise ValueError(f"{path}: cannot be written: no permission to write in {folder}")
+
+
 def _train(args) -> None:
+    _check_outputs(args.output)
     from anseg import datasets
     from anseg.configs import overrides
     from anseg.pipeline import SegmentConfig
@@ -148,45 +225,50 @@ def _print_scores(scores: dict) -> None:
 
 
 def _segment(args) -> None:
-    from anseg import load_mesh, repair, save_mesh
-    from anseg.cache import atomic_write
-    from anseg.mesh import labels_for_input_faces
-    from anseg.pipeline import segment
-    from anseg.viz import label_colors
+    from anseg import load_mesh, repair
+    from anseg.mesh import WRITABLE_SUFFIXES
 
     if args.model_name is not None:
         if len(args.paths) != 1:
             raise ValueError("with --model, give only the mesh file")
-        from anseg.pretrained import resolve
-
-        model, args.mesh = _load_model(resolve(args.model_name)), args.paths[0]
+        model_file, args.mesh = _model_file(args.model_name), args.paths[0]
     else:
         if len(args.paths) != 2:
             raise ValueError("give a model file and a mesh file, or --model NAME and a mesh file "
                              "(`anseg models` lists the names)")
-        model, args.mesh = _load_model(args.paths[0]), args.paths[1]
+        model_file, args.mesh = _model_file(args.paths[0]), args.paths[1]
+    output = args.output or args.mesh.with_name(f"{args.mesh.stem}_labels.ply")
+    label_path = args.labels or output.with_suffix(".txt")
+    if output.suffix.lower() not in WRITABLE_SUFFIXES:
+        raise ValueError(f"{output}: cannot write {output.suffix!r} (the coloured mesh is one of {', '.join(WRITABLE_SUFFIXES)})")
+    _check_outputs(output, label_path, args.html)
     mesh = input_mesh = load_mesh(args.mesh, validate=not args.repair)
     face_map = None
     if args.repair:
         mesh, face_map = repair(mesh)
+    model = _load_model(model_file)
+
+    from anseg.cache import atomic_write_all
+    from anseg.mesh import labels_for_input_faces, save_mesh
+    from anseg.pipeline import segment
+    from anseg.viz import label_colors
+
     config = model.config
     if args.smooth_weight is not None:
         from dataclasses import replace
 
         config = replace(config, smooth_weight=args.smooth_weight)
     result = segment(mesh, model, config, device=next(model.network.parameters()).device, progress=not args.quiet)
-    output = args.output or args.mesh.with_name(f"{args.mesh.stem}_labels.ply")
-    label_path = args.labels or output.with_suffix(".txt")
     labels = result.labels
     if face_map is not None:  # back to the input faces, dropped ones included
         labels = labels_for_input_faces(result.labels, face_map, input_mesh)
-    # each file is complete or absent, even when interrupted
-    atomic_write(output, lambda tmp: save_mesh(tmp, mesh, face_colors=label_colors(result.labels, model.n_classes)))
-    atomic_write(label_path, lambda tmp: np.savetxt(tmp, labels, fmt="%d"))
+    writes = {output: lambda tmp: save_mesh(tmp, mesh, face_colors=label_colors(result.labels, model.n_classes)),
+              label_path: lambda tmp: np.savetxt(tmp, labels, fmt="%d")}
     if args.html:
         from anseg.viewer import write_html
 
-        write_html(result, model.label_names, args.html, title=args.mesh.name)
+        writes[args.html] = lambda tmp: write_html(result, model.label_names, tmp, title=args.mesh.name)
+    atomic_write_all(writes)  # all the outputs or none, each complete, even when interrupted
     counts = np.bincount(result.labels, minlength=model.n_classes)
     print(f"{mesh.n_faces} faces -> {output} and {label_path}" + (f" (view: {args.html})" if args.html else ""))
     for name, count in zip(model.label_names, counts):
@@ -194,26 +276,39 @@ def _segment(args) -> None:
 
 
 def _evaluate(args) -> None:
+    model_file = _model_file(args.model)
+    _check_outputs(args.json)
     from anseg import datasets
+    from anseg.cache import atomic_write
     from anseg.train import evaluate
 
-    model = _load_model(args.model)
+    model = _load_model(model_file)
     test_set = datasets.load(args.dataset, category=args.category, split="test", split_index=args.split, root=args.data)
     scores = evaluate(model, test_set)
     _print_scores(scores)
     if args.json:
         scores.pop("predictions")
-        args.json.write_text(json.dumps(scores, indent=1))
+        atomic_write(args.json, lambda tmp: tmp.write_text(json.dumps(scores, indent=1)))
 
 
 def _features(args) -> None:
-    from anseg import features, load_mesh, repair
+    from anseg import load_mesh, repair
 
+    _check_outputs(args.output)
     mesh = load_mesh(args.mesh, validate=not args.repair)
     if args.repair:
         mesh, _ = repair(mesh)
-    x = features.compute(mesh, groups=[g.strip() for g in args.groups.split(",") if g.strip()], progress=not args.quiet)
-    np.save(args.output, x)
+    from anseg import features
+    from anseg.cache import atomic_write
+
+    groups = [g.strip() for g in str(args.groups).split(",") if g.strip()]
+    x = features.compute(mesh, groups=groups, progress=not args.quiet)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as handle:  # np.save(path) would append ".npy" to a name without it
+            np.save(handle, x)
+
+    atomic_write(args.output, write)
     print(f"{x.shape[0]} faces x {x.shape[1]} features -> {args.output}")
 
 
@@ -223,12 +318,23 @@ def _models(args) -> None:
     if not pretrained.names():
         print("no pretrained models are shipped with this installation; `anseg train` makes one")
     for name in pretrained.names():
-        print(pretrained.describe(name))
+        card = pretrained.card(name)
+        print(f"{pretrained.describe(name)}; revision {str(card.get('code_revision', '?'))[:8]}, "
+              f"{str(card.get('date', '?'))[:10]}")
+        if args.verbose:
+            try:
+                labels = ", ".join(_load_model(pretrained.path(name)).label_names)
+            except ValueError as exc:  # a damaged file, or one for other features: say so, and list the others
+                labels = f"unreadable ({exc})"
+            print(f"    labels: {labels}")
+            print(f"    {card.get('test_meshes', '?')} test meshes; trained on {card.get('trained_on', '?')} "
+                  f"at {card.get('date', '?')}, code revision {card.get('code_revision', '?')}, stored run "
+                  f"{card.get('run', '?')}")
 
 
 def main(argv: list[str] | None = None) -> int:
     from anseg.datasets import DatasetError
-    from anseg.mesh import MeshError
+    from anseg.mesh import REPAIR_HINT, MeshError
 
     argv = sys.argv[1:] if argv is None else list(argv)
     args = _parser().parse_args(argv)
@@ -240,15 +346,19 @@ def main(argv: list[str] | None = None) -> int:
         for warning in caught:  # ours, one line each, not in Python's file:line form
             if warning.category.__module__.startswith("anseg"):
                 print(f"anseg {args.command}: warning: {warning.message}", file=sys.stderr)
-    except (MeshError, DatasetError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-        print(f"anseg {args.command}: error: {exc}", file=sys.stderr)
+    except BrokenPipeError:  # the reader left (`anseg models | head`): stop quietly, as Unix tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit's flush cannot fail again
+        return 141
+    except (MeshError, DatasetError, ValueError, OSError) as exc:
+        if isinstance(exc, OSError) and exc.filename is not None:  # "PATH: reason", not Python's "[Errno N] reason: 'PATH'"
+            message = f"{exc.filename}: {exc.strerror or exc}"
+        else:  # the library names its repair anseg.repair(mesh); here it is a flag
+            message = str(exc).replace(REPAIR_HINT, "--repair")
+        print(f"anseg {args.command}: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("anseg: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # the reader left (`anseg models | head`): stop quietly, as Unix tools do
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit's flush cannot fail again
-        return 141
     return 0
 
 

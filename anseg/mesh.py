@@ -35,6 +35,14 @@ class MeshError(ValueError):
     """A mesh file or array that the package cannot work with, and why."""
 
 
+# how the library's messages name the repair; the command line puts its flag, --repair, in its place
+REPAIR_HINT = "anseg.repair(mesh)"
+# a face is degenerate when its area is at most this times its longest edge squared (see degenerate_faces)
+DEGENERATE_EPS = 1e-10
+# repair refuses to drop more than this share of the faces (see repair)
+REPAIR_MAX_DROP = 0.5
+
+
 class Mesh:
     """A triangle mesh with derived per-face and per-edge quantities.
 
@@ -230,7 +238,8 @@ class Mesh:
         """Raise MeshError unless the mesh is usable; return self for chaining.
 
         Checks, in order: not empty, finite coordinates, face indices in
-        range, no zero-area faces, no repeated faces, no non-manifold edges,
+        range, no degenerate faces (:func:`degenerate_faces`: each face judged
+        by its own edges), no repeated faces, no non-manifold edges,
         no non-manifold vertices. A mesh is treated as immutable (its tables
         are cached), so one that passed is not checked again: segmenting a
         mesh asks several stages for a valid mesh, and only the first pays.
@@ -247,24 +256,22 @@ class Mesh:
                 f"faces index missing vertices: indices span [{self.faces.min()}, {self.faces.max()}] "
                 f"but there are {self.n_vertices} vertices"
             )
-        degenerate = np.flatnonzero(self.face_areas <= _area_tolerance(self))
+        degenerate = np.flatnonzero(degenerate_faces(self))
         if len(degenerate):
-            raise MeshError(
-                f"{len(degenerate)} zero-area faces (first: {int(degenerate[0])}); "
-                "anseg.repair(mesh) removes them and keeps a map to the input faces"
-            )
+            raise MeshError(f"{len(degenerate)} degenerate (zero-area) faces (first: {int(degenerate[0])}); "
+                            f"{REPAIR_HINT} drops them and keeps a map to the input faces")
         repeated = self.n_faces - _count_distinct_rows(np.sort(self.faces, axis=1), self.n_vertices)
         if repeated:
             raise MeshError(f"{repeated} faces repeat another face's three vertices; "
-                            "anseg.repair(mesh) (--repair on the command line) drops them and keeps a map to the input faces")
+                            f"{REPAIR_HINT} drops them and keeps a map to the input faces")
         nonmanifold = int((self.edge_face_counts > 2).sum())
         if nonmanifold:
-            raise MeshError(f"{nonmanifold} non-manifold edges (shared by more than two faces); anseg.repair(mesh) "
-                            "(--repair on the command line) cuts the mesh apart there and keeps a map to the input faces")
+            raise MeshError(f"{nonmanifold} non-manifold edges (shared by more than two faces); "
+                            f"{REPAIR_HINT} cuts the mesh apart there and keeps a map to the input faces")
         pinched = self.corner_fans.max() + 1 - len(np.unique(self.faces))
         if pinched:
             raise MeshError(f"{pinched} non-manifold vertices (where sheets of faces meet at a single vertex); "
-                            "anseg.repair(mesh) (--repair on the command line) cuts the sheets apart")
+                            f"{REPAIR_HINT} cuts the sheets apart")
         self._valid = True
         return self
 
@@ -277,12 +284,28 @@ def _count_distinct_rows(rows: np.ndarray, n_values: int) -> int:
     return len(np.unique(rows, axis=0))
 
 
-def _area_tolerance(mesh: Mesh) -> float:
-    """Below this a face counts as zero-area: relative to the extent of the vertices that faces use,
-    so that a stray unreferenced vertex far away (CAD exports leave them) does not make real faces degenerate."""
-    corners = mesh.vertices[mesh.faces].reshape(-1, 3)
-    diagonal = np.linalg.norm(np.ptp(corners, axis=0)) if len(corners) else 0.0
-    return 1e-14 * diagonal * diagonal
+def degenerate_faces(mesh: Mesh) -> np.ndarray:
+    """(F,) True where a face is degenerate: its area is at most :data:`DEGENERATE_EPS` times its longest edge squared.
+
+    Each face is judged by its own edges, never by the size of the whole
+    mesh: one facet far away (or a part in other units) must not turn every
+    other face into a "zero-area" one. Area over longest edge squared is
+    half the face's height over that edge, a shape measure that does not
+    change with scale or position; it is 0 for a face whose corners are
+    collinear or repeated and at most about 0.43 (equilateral).
+
+    Why 1e-10: float64 rounding makes the computed area of a face with
+    longest edge L and corners at distance R from the origin uncertain by
+    about 2.2e-16 * R * L. The threshold lies far above that for any face
+    smaller than its distance to the origin by less than about a hundred
+    thousand times, so rounding alone does not make a face degenerate or
+    keep it from being so; and it only takes faces whose height is below
+    2e-10 of their longest edge, needles and caps that no scanner or
+    modeller makes on purpose and whose normal and angles mean nothing.
+    """
+    corners = mesh.vertices[mesh.faces]
+    longest_squared = ((np.roll(corners, -1, axis=1) - corners) ** 2).sum(axis=2).max(axis=1, initial=0.0)
+    return mesh.face_areas <= DEGENERATE_EPS * longest_squared
 
 
 def _merge_identical_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -299,11 +322,15 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     Returns the repaired mesh and ``face_map``, the input index of every
     repaired face (so that ``labels[face_map]`` carries per-face input labels
     over, and :func:`labels_for_input_faces` carries labels back). Vertices
-    that no face uses are dropped first (so that they neither count in the
-    scale of the zero-area test nor survive); vertices with identical
-    coordinates are merged; faces that then repeat a vertex, have zero area
-    or repeat another face's vertex set are dropped (the first copy is kept)
-    and the vertices only they used are removed. Then every sheet of faces
+    that no face uses are dropped first; vertices with identical
+    coordinates are merged; faces that then repeat a vertex, are degenerate
+    (:func:`degenerate_faces`, each judged by its own edges) or repeat
+    another face's vertex set are dropped (the first copy is kept) and the
+    vertices only they used are removed. Repair refuses (MeshError) to drop
+    more than :data:`REPAIR_MAX_DROP` (half) of the faces: a mesh that is
+    mostly degenerate or doubled is damaged or misread (e.g. coordinates
+    rounded to float32 far from the origin), and what would be left is
+    another mesh, not this one repaired. Then every sheet of faces
     around a non-manifold edge or vertex gets its own copies of the vertices
     there (:attr:`Mesh.corner_fans`), so that the result is manifold and the
     faces keep their order. Non-finite coordinates of used vertices and bad
@@ -319,13 +346,17 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     vertices, faces = _merge_identical_vertices(mesh.vertices[used], faces.reshape(-1, 3))
     merged = Mesh(vertices, faces)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
-    keep &= merged.face_areas > _area_tolerance(merged)
+    keep &= ~degenerate_faces(merged)
     _, unique_first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
     not_duplicate = np.zeros(len(faces), dtype=bool)
     not_duplicate[unique_first] = True
     face_map = np.flatnonzero(keep & not_duplicate)
-    if len(face_map) == 0:
-        raise MeshError("no faces left after repair")
+    dropped = len(faces) - len(face_map)
+    if dropped > REPAIR_MAX_DROP * len(faces):
+        n_degenerate = int((~keep).sum())
+        raise MeshError(f"{'no faces left after repair' if len(face_map) == 0 else 'repair would drop most faces'}: "
+                        f"{n_degenerate} of {len(faces)} are degenerate and {dropped - n_degenerate} repeat another, "
+                        f"more than {REPAIR_MAX_DROP:.0%}; so damaged a mesh is not repaired (was it read right?)")
     used, faces = np.unique(faces[face_map], return_inverse=True)  # sorted: the order stays
     kept = Mesh(vertices[used], faces.reshape(-1, 3))
     # one vertex per fan: a vertex's first fan keeps its index, the others are copies appended at the end
@@ -388,27 +419,46 @@ def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
     With ``validate`` (the default) the mesh is checked and a MeshError says
     what is wrong; pass ``validate=False`` and call :func:`repair` to fix
     duplicate vertices and degenerate or duplicate faces.
+
+    A file that cannot be read (a folder, empty, truncated, damaged, or in
+    another format than its suffix says) is a one-line MeshError about the
+    file, in our words: the reader's own exception (chained as the cause)
+    speaks of its internals, not of the file. An OFF or PLY file holding
+    fewer vertices or faces than its header declares is truncated, even
+    where the reader stops quietly at the end.
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    if path.is_dir():
+        raise MeshError(f"{path}: is a directory, not a mesh file")
     if not path.is_file():
         raise MeshError(f"{path}: no such file")
     if suffix not in SUPPORTED_SUFFIXES:
         raise MeshError(f"{path}: unsupported format {path.suffix!r} (expected one of {', '.join(SUPPORTED_SUFFIXES)})")
-    _check_declared_counts(path)
+    if path.stat().st_size == 0:
+        raise MeshError(f"{path}: the file is empty")
+    declared = _check_declared_counts(path)
     import trimesh
 
+    unreadable = f"{path}: cannot read mesh: not a complete {suffix[1:].upper()} file (truncated or damaged?)"
     try:  # a scene comes back as its meshes, transformed and concatenated
         loaded = trimesh.load(path, process=False, maintain_order=True, force="mesh")
     except Exception as exc:  # trimesh raises many types on bad files
-        raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from exc
+        raise MeshError(unreadable) from exc
     try:  # trimesh hands back a ragged array for a vertex line short of a coordinate
         faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64).reshape(-1, 3)
         vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64).reshape(-1, 3)
     except ValueError as exc:
-        raise MeshError(f"{path}: cannot read mesh (a vertex or face without 3 entries: {exc})") from None
+        raise MeshError(f"{path}: cannot read mesh (a vertex or face without 3 entries)") from exc
     if suffix in _SCENE_SUFFIXES and len(faces) == 0:
         raise MeshError(f"{path}: the scene holds no triangle mesh")
+    if len(faces) == 0:
+        raise MeshError(f"{path}: cannot read mesh: no triangles in it (truncated, damaged, or not in "
+                        f"{suffix[1:].upper()} format?)")
+    read = {"vertex": len(vertices), "face": len(faces)}  # a reader may split polygons: more faces, never fewer
+    short = [f"{read[kind]} of the {n} {kind} elements" for kind, n in declared.items() if read[kind] < n]
+    if short:
+        raise MeshError(f"{path}: holds only {' and '.join(short)} its header declares (truncated?)")
     in_range = len(faces) == 0 or (faces.min() >= 0 and faces.max() < len(vertices))
     if suffix in _PER_CORNER_SUFFIXES and in_range:  # bad indices are left for validate to report
         vertices, faces = _merge_identical_vertices(vertices, faces)
@@ -431,8 +481,11 @@ def _is_count(word: str) -> bool:
     return word.isascii() and word.isdigit()
 
 
-def _check_declared_counts(path: Path) -> None:
-    """Refuse an OFF or PLY header that declares more elements than the file can hold, before anything is allocated."""
+def _check_declared_counts(path: Path) -> dict[str, int]:
+    """Refuse an OFF or PLY header that declares more elements than the file can hold, before anything is allocated.
+
+    Returns the declared counts (``vertex``, ``face``; empty for other formats), for the caller to compare with what was read.
+    """
     size = path.stat().st_size
     with open(path, "rb") as handle:
         head = handle.read(4096).decode("latin-1")
@@ -457,6 +510,7 @@ def _check_declared_counts(path: Path) -> None:
     if needed > size:
         declared = ", ".join(f"{n} {kind} elements" for kind, n in counts.items())
         raise MeshError(f"{path}: the header declares {declared}, more than its {size} bytes can hold (truncated or damaged)")
+    return counts
 
 
 def save_mesh(path: str | os.PathLike, mesh: Mesh, face_colors: np.ndarray | None = None) -> None:

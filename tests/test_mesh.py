@@ -353,3 +353,49 @@ def test_a_valid_mesh_is_checked_once(monkeypatch):
     broken = Mesh(mesh.vertices, np.vstack([mesh.faces, mesh.faces[:1]]))  # a new mesh is checked in full
     with pytest.raises(MeshError, match="repeat"):
         broken.validate()
+
+
+def sphere_and_a_far_facet() -> tuple[Mesh, Mesh]:
+    sphere = grid_mesh(5, closed=True)
+    far = np.array([[1e9, 1e9, 1e9], [1e9 + 1, 1e9, 1e9], [1e9, 1e9 + 1, 1e9]])
+    n = sphere.n_vertices
+    return sphere, Mesh(np.vstack([sphere.vertices, far]), np.vstack([sphere.faces, [[n, n + 1, n + 2]]]))
+
+
+def test_degeneracy_is_judged_per_face_not_against_the_whole_mesh():
+    sphere, with_far = sphere_and_a_far_facet()
+    with_far.validate()  # the far facet is a good triangle, and makes no other face "zero-area"
+    fixed, face_map = repair(with_far)
+    assert face_map.tolist() == list(range(with_far.n_faces))
+    assert np.array_equal(fixed.vertices[fixed.faces][: sphere.n_faces], sphere.vertices[sphere.faces])
+    from anseg.mesh import degenerate_faces
+
+    # scale and position change nothing; a needle is degenerate however small or large the rest
+    needle = Mesh(np.vstack([TETRA_V, [[0.5, 1e-12, 0]]]), np.vstack([TETRA_F, [[0, 1, 4]]]))
+    for scale, shift in ((1.0, 0.0), (1e-6, 0.0), (1e6, 0.0), (1.0, 1e6)):
+        moved = Mesh(needle.vertices * scale + shift, needle.faces)
+        assert degenerate_faces(moved).tolist() == [False] * 4 + [True]
+
+
+def test_repair_refuses_to_drop_most_of_a_mesh():
+    sphere = grid_mesh(5, closed=True)
+    flat = sphere.vertices * [1, 1, 0]  # every face squashed onto a plane: most become degenerate
+    with pytest.raises(MeshError, match=r"repair would drop most faces: \d+ of \d+ are degenerate.*more than 50%"):
+        repair(Mesh(np.vstack([flat, sphere.vertices + 5]), np.vstack([sphere.faces, sphere.faces[:10] + sphere.n_vertices])))
+
+
+def test_library_errors_name_the_function_not_the_flag():
+    for mesh in (Mesh(np.vstack([TETRA_V, [2, 0, 0]]), np.vstack([TETRA_F, [0, 1, 4]])),
+                 Mesh(TETRA_V, np.vstack([TETRA_F, TETRA_F[:1]]))):
+        with pytest.raises(MeshError, match=r"anseg\.repair\(mesh\)") as error:
+            mesh.validate()
+        assert "--repair" not in str(error.value)
+
+
+def test_a_folder_or_a_short_file_is_named_as_such(tmp_path):
+    with pytest.raises(MeshError, match="is a directory"):
+        load_mesh(tmp_path)
+    full = write_off(tmp_path / "m.off", TETRA_V, TETRA_F).read_text()
+    (tmp_path / "short.off").write_text(full[: full.rindex("3 ")])  # the last face line gone: the reader stops quietly
+    with pytest.raises(MeshError, match="holds only 3 of the 4 face elements its header declares"):
+        load_mesh(tmp_path / "short.off")
