@@ -57,9 +57,9 @@ def headline(results_dir: Path) -> str:
                  + (f" ({row[f'paper, {m}']:.2f})" if pd.notna(row.get(f"paper, {m}")) else "") for m in rows]
         lines.append(f"| {category} | " + " | ".join(cells) + " |")
     differences = [ledger.paired_over_splits(ablation_runs, "nonuniform", m) for m in rows[1:]]
-    lines += ["", "Paired, per split the mean over the categories, then its mean and standard deviation over splits "
-              "(a difference inside its spread is not a finding): "
-              + "; ".join(f"{d} ({d.reading})" for d in differences) + "."]
+    lines += ["", f"Paired, per split and category: nonuniform minus each other row, the mean over {len(ablation_splits)} "
+              "split(s) and the categories with its 95 % bootstrap interval, read by the claims ledger's rule: "
+              + "; ".join(f"{d} ({d.verdict})" for d in differences) + "."]
     coseg = results_dir / "table2_coseg.csv"
     if coseg.is_file():
         table2 = pd.read_csv(coseg, index_col=0)
