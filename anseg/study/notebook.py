@@ -166,6 +166,20 @@ class NotebookRun:
                     "with other library versions; each run's machine is in the runs table.")
         return f"Trained on one kind of machine: {listed}." if machines else "No stored run is read here."
 
+    def summary(self) -> str:
+        """The record in a few lines a reader takes in (Markdown): configuration, data, code, machine, versions."""
+        env, p = self.record["environment"], self.parameters
+        revision = (env.get("code_revision") or "not recorded")[:12]
+        clean = {True: "", False: " (with uncommitted changes)", None: ""}[env.get("code_clean")]
+        machine = env.get("cuda") or f"CPU, {env['cpus']} cores, torch kernels {env.get('torch_kernels', '?')}"
+        data = ", ".join(d["dataset"] for d in self.record["data"])
+        splits = f"; splits {', '.join(map(str, p['splits']))}" if "splits" in p else ""
+        rows = [("configuration", f"`{p['config']}` ({p['epochs']} epochs, seed {p['seed']})"),
+                ("data", f"{data}{splits}"), ("code", f"anseg {revision}{clean}; features {env.get('features', '?')}"),
+                ("machine", f"{machine}; torch {env['torch']}, python {env['python']}"),
+                ("record", f"`results/{self.name}.json` (wall time and the runs read, written when the notebook ends)")]
+        return "| run record | |\n|---|---|\n" + "\n".join(f"| {name} | {value} |" for name, value in rows)
+
     def _runs_read(self) -> dict:
         """How many runs the notebook read, the machines and code revisions that trained them, and their training time."""
         from collections import Counter
@@ -217,8 +231,9 @@ class NotebookRun:
 def start(name: str, namespace: dict) -> NotebookRun:
     """Set up notebook ``name`` from the parameters its parameter cell left in ``namespace`` (its ``globals()``).
 
-    Shows the synthetic-data notice where it applies and prints the run
-    record (data, seeds, settings, versions, hardware).
+    Shows the synthetic-data notice where it applies and the run record in
+    a few lines; the whole record (data, seeds, settings, versions, hardware)
+    rides in that output's metadata (``anseg_record``) and in the record file.
     """
     import warnings
 
@@ -231,13 +246,12 @@ def start(name: str, namespace: dict) -> NotebookRun:
     if missing:
         raise ValueError(f"{name}: the parameter cell does not define {', '.join(missing)}")
     run = NotebookRun(name, {key: namespace[key] for key in names})
-    if (notice := run.notice()) is not None:
-        from IPython import get_ipython
-        from IPython.display import Markdown, display
+    from IPython import get_ipython
+    from IPython.display import Markdown, display
 
-        if get_ipython() is not None:
-            display(Markdown(notice))
-        else:  # a plain script: text, not an object's repr
-            print(notice)
-    print(json.dumps(run.record, indent=1, default=str))
+    shown = "\n\n".join(filter(None, [run.notice(), run.summary()]))
+    if get_ipython() is not None:
+        display(Markdown(shown), metadata={"anseg_record": json.loads(json.dumps(run.record, default=str))})
+    else:  # a plain script: text, not an object's repr
+        print(shown)
     return run

@@ -61,6 +61,8 @@ def run(kind: str, only: list[str] | None = None, out: Path | None = None, kerne
         os.environ["OMP_NUM_THREADS"] = "1"
         print("[anseg] OMP_NUM_THREADS=1 for the notebooks' kernels (the stored runs' setting); set it to choose",
               flush=True)
+    # an executed notebook is read, not watched: no progress bars in its outputs (tqdm reads this)
+    os.environ.setdefault("TQDM_DISABLE", "1")
     narrowed = [n for n in names if splits and "splits" in PLANS[n].parameters[kind]]
     if kind == "real" and out is None and narrowed:
         print(f"[anseg] --splits {' '.join(map(str, splits))}: the committed outputs of {', '.join(narrowed)} "
