@@ -1,7 +1,7 @@
 """How well a stored model fits the meshes it was trained on: bias read, not guessed.
 
     python benchmarks/training_fit.py psb/Hand [psb/FourLeg ...]
-    python benchmarks/training_fit.py --cell results/validation/fit/runs/KEY.json [--models DIR]
+    python benchmarks/training_fit.py --cell results/validation/fit/runs/KEY.json [--models DIR] [--csv PATH]
 
 A shipped model (by name) is scored on its run's training meshes; a validation
 cell (its stored record) with its model under ``--models`` (default: the
@@ -50,7 +50,8 @@ def cell(path: Path, models: Path | None) -> tuple[Segmenter, list, dict]:
     return Segmenter.load(model_file), meshes, record
 
 
-def report(title: str, model: Segmenter, meshes: list, record: dict) -> None:
+def report(title: str, model: Segmenter, meshes: list, record: dict) -> dict:
+    """Print the fit of one model on its training meshes; returns its row (training and held-out accuracy, %)."""
     scores = evaluate(model, meshes, progress=False)
     held_out = 100 * record["accuracy"]["unit_area"]
     print(f"\n{title}: {len(meshes)} training meshes, {100 * scores['smoothed']['unit_area']:.2f} % on them "
@@ -65,6 +66,8 @@ def report(title: str, model: Segmenter, meshes: list, record: dict) -> None:
     pairs = [np.unravel_index(i, confusion.shape) for i in order if confusion.flat[i] > 0]
     print("  most area lost (true -> predicted): " + ", ".join(
         f"{model.label_names[t]} -> {model.label_names[p]} {100 * confusion[t, p]:.1f}" for t, p in pairs))
+    return {"model": title, "category": record.get("category"), "training_meshes": len(meshes),
+            "on_training_meshes": 100 * scores["smoothed"]["unit_area"], "held_out": held_out}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -72,16 +75,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("names", nargs="*", help="shipped models (`anseg models` lists them)")
     parser.add_argument("--cell", type=Path, action="append", default=[], help="a validation cell's record (repeatable)")
     parser.add_argument("--models", type=Path, help="the folder of the cells' models (default: beside their runs)")
+    parser.add_argument("--csv", type=Path, help="also write the rows (model, category, both accuracies) here")
     args = parser.parse_args(argv)
     if not args.names and not args.cell:
         parser.error("name a shipped model or a --cell")
+    rows = []
     try:
         for name in args.names:
-            report(name, *shipped(name))
+            rows.append(report(name, *shipped(name)))
         for path in args.cell:
             model, meshes, record = cell(path, args.models)
-            report(f"{record['arm']} {record['category']} fold {record['fold']} seed {record['seed']}", model, meshes,
-                   record)
+            rows.append(report(f"{record['arm']} {record['category']} fold {record['fold']} seed {record['seed']}",
+                               model, meshes, record))
+        if args.csv:
+            from anseg.study.comparison import csv_text
+
+            args.csv.write_text(csv_text(rows))
     except (ValueError, OSError) as exc:
         print(f"training_fit: {exc}", file=sys.stderr)
         return 2
