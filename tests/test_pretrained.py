@@ -205,3 +205,26 @@ def test_explore_uses_a_shipped_model_only_under_its_configuration(shipped):
     assert explore_model_name({"dataset": "figure", "category": "synthetic/figure", "config": "default"}) \
         == "synthetic/figure"
     assert explore_model_name({"dataset": "figure", "category": "synthetic/figure", "config": "v1"}) is None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["psb/Human", "psb/Hand"])
+def test_the_labels_do_not_depend_on_the_thread_count(name, data_root):
+    """A mesh's labels are the same with 1, 2 and 4 threads (torch, numba and BLAS alike), bit for bit."""
+    import numba
+    from threadpoolctl import threadpool_limits
+
+    item = datasets.load("psb", name.split("/")[1], "test", 0, root=data_root, progress=False)[0]
+    model = Segmenter.pretrained(name)
+    torch_threads, numba_threads = torch.get_num_threads(), numba.get_num_threads()
+    labels = []
+    try:
+        for threads in (1, 2, 4):
+            torch.set_num_threads(threads)
+            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+            with threadpool_limits(limits=threads):
+                labels.append(segment(item.mesh, model).labels)
+    finally:
+        torch.set_num_threads(torch_threads)
+        numba.set_num_threads(numba_threads)
+    assert all(np.array_equal(labels[0], other) for other in labels[1:])
