@@ -3,8 +3,8 @@
 * ``default``: the project's reading, :class:`SegmentConfig` and
   :class:`TrainConfig` as they are; every default there is chosen by
   cross-validation on training meshes (:mod:`anseg.study.validate`).
-* ``v1``: the defaults before that validation, with which the committed
-  tables (``results/runs``) were trained; its experiments keep their keys.
+* ``v1``: the defaults before that validation, kept for the record: its
+  runs stay in ``results/runs`` and keep their keys.
 * ``fast``: the default with patches of 32 faces (half the tokens) and the
   hierarchy rebuilt every 10 epochs instead of 5, for studies and users
   that need cheaper training at a small cost in held-out accuracy.
