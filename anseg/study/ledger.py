@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.study import reference
+from anseg.study import reference, revisions
 from anseg.study.plan import PLAIN_READING
 
 REPRODUCED, NOT_REPRODUCED, TIED, UNTESTED = "reproduced", "not reproduced", "not distinguishable", "cannot be tested here"
@@ -160,6 +160,12 @@ def _csv(results: Path, name: str, **options):
     if not path.is_file():
         raise MissingResult(f"{name} is not written yet")
     return pd.read_csv(path, **options)
+
+
+def _revisions(runs, arm: str, results: Path) -> str:
+    """"; " and :func:`anseg.study.revisions.mix`'s sentence where the arms read other revisions, else ""."""
+    sentence = revisions.mix(runs, arm, results)
+    return f"; {sentence}" if sentence else ""
 
 
 def _by_unit(runs, *columns: str):
@@ -279,7 +285,7 @@ def _ablation_order(results: Path) -> Verdict:
         difference = paired_over_splits(runs, better, worse)
         paper = np.mean([modes[better][c] - modes[worse][c] for c in modes[better]])
         parts.append((difference, f"{difference} ({difference.verdict}; paper {paper:+.2f})"))
-    evidence = "; ".join(text for _, text in parts)
+    evidence = "; ".join(text for _, text in parts) + _revisions(runs, "mode", results)
     try:
         paired = _csv(results / "validation", "confirm2-controls-suite_paired.csv")
         evidence += "; held out, against nonuniform, not judged: " + ", ".join(
@@ -435,7 +441,8 @@ def _cycles(results: Path) -> Verdict:
     units = _fig11(results)
     rise = _pooled({c: u[1] for c, u in units.items()}, f"N = {reference.FIG11_CHOICE['cycles']} − N = 1")
     shares = "; ".join(f"{c} {', '.join(f'{r:g}' for r in u[0].index.unique('removed'))}" for c, u in units.items())
-    return _judged(f"{rise} (shares removed: {shares}); the paper gives curves, no numbers", rise)
+    mixed = _revisions(_csv(results, "fig11_cycles_ratio.csv").astype({"cycles": str}), "cycles", results)
+    return _judged(f"{rise} (shares removed: {shares}); the paper gives curves, no numbers{mixed}", rise)
 
 
 def _best_setting(results: Path) -> Verdict:
@@ -448,7 +455,9 @@ def _best_setting(results: Path) -> Verdict:
     gap = _pooled({c: u[2] for c, u in units.items()}, "the paper's choice − the best other point")
     rivals = "; ".join(f"{c} N = {u[3][1]}, removing {u[3][0]:g} (of {len(u[0])} points)" if u[3] is not None
                        else f"{c}: the paper's choice not run" for c, u in units.items())
-    return _judged(f"{gap} (best other point: {rivals})", gap)
+    runs = _csv(results, "fig11_cycles_ratio.csv")
+    grid = runs.assign(point=runs.removed.astype(str) + "/" + runs.cycles.astype(str))
+    return _judged(f"{gap} (best other point: {rivals}){_revisions(grid, 'point', results)}", gap)
 
 
 def feature_effects(runs) -> tuple[Effect, Effect]:
@@ -470,8 +479,10 @@ def feature_effects(runs) -> tuple[Effect, Effect]:
 
 def _features(results: Path) -> Verdict:
     """Two parts: the full set beats the best other set, and adding AGD helps (:func:`feature_effects`)."""
-    best, agd = feature_effects(_csv(results, "fig12_features.csv"))
-    return _judged(f"{best} ({best.verdict}); {agd} ({agd.verdict}); the paper gives renders, no numbers", best, agd)
+    runs = _csv(results, "fig12_features.csv")
+    best, agd = feature_effects(runs)
+    return _judged(f"{best} ({best.verdict}); {agd} ({agd.verdict}); the paper gives renders, no numbers"
+                   + _revisions(runs, "features", results), best, agd)
 
 
 def _better_than_meshcnn(results: Path) -> Verdict:

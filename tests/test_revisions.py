@@ -1,0 +1,46 @@
+"""A paired comparison never mixes code revisions silently: the ledger names the revisions beside the verdict."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from anseg.study import ledger, revisions
+from anseg.study.store import REPO
+
+
+def store_runs(folder, revision_of: dict) -> None:
+    (folder / "runs").mkdir(parents=True, exist_ok=True)
+    for key, revision in revision_of.items():
+        (folder / "runs" / f"{key}.json").write_text(json.dumps({"environment": {"code_revision": revision,
+                                                                                "code_clean": True}}))
+
+
+def test_arms_of_one_revision_say_nothing_and_mixed_ones_are_named(tmp_path):
+    runs = pd.DataFrame({"mode": ["a", "a", "b", "b"], "key": ["k1", "k2", "k3", "k4"]})
+    store_runs(tmp_path, {"k1": "1111111aaa", "k2": "2222222bbb", "k3": "1111111aaa", "k4": "2222222bbb"})
+    assert revisions.mix(runs, "mode", tmp_path) is None
+    store_runs(tmp_path, {"k4": "3333333ccc"})
+    sentence = revisions.mix(runs, "mode", tmp_path)
+    assert "a: 1111111, 2222222" in sentence and "b: 1111111, 3333333" in sentence and "not measured" in sentence
+
+
+PAIRED = {"Downsampling order": ("table4_ablation_runs.csv", "mode"),
+          "All four feature groups": ("fig12_features.csv", "features"),
+          "More cycles help": ("fig11_cycles_ratio.csv", "cycles")}
+
+
+@pytest.mark.parametrize("claim", sorted(PAIRED))
+def test_every_committed_paired_row_that_mixes_revisions_says_so(claim):
+    name, arm = PAIRED[claim]
+    if not (REPO / "results" / name).is_file():
+        pytest.skip(f"results/{name} is not written")
+    runs = pd.read_csv(REPO / "results" / name)
+    sentence = revisions.mix(runs, arm, REPO / "results")
+    evidence = ledger.ledger(REPO / "results").set_index("claim").loc[claim, "our evidence"]
+    if sentence is None:
+        assert "code revisions" not in evidence
+    else:
+        assert sentence in evidence
