@@ -29,6 +29,12 @@ from pathlib import Path
 import numpy as np
 
 EXIT_BAD_INPUT = 2
+SEGMENT_DESCRIPTION = (
+    "Write a face-coloured PLY (triangles) and a label file: one 0-based label per line, line k for the mesh file's "
+    "face k, in the file's order whatever it groups faces by (OBJ materials, objects, groups). A polygon of k sides is "
+    "one line: it is segmented as k - 2 triangles, a fan from its first corner, and takes the label that covers most "
+    "of its area. A glTF/GLB scene is one shape, its meshes in the scene's node order; a scene that places one mesh "
+    "more than once is refused (export one placement).")
 
 
 def _non_negative(text: str) -> float:
@@ -85,7 +91,7 @@ def _add_data_options(parser: argparse.ArgumentParser) -> None:
 
 def _parser() -> argparse.ArgumentParser:
     from anseg import __version__
-    from anseg.mesh import SUPPORTED_SUFFIXES
+    from anseg.mesh_files import SUPPORTED_SUFFIXES
 
     mesh_help = f"mesh file ({', '.join(SUPPORTED_SUFFIXES)})"
     parser = argparse.ArgumentParser(prog="anseg", description=__doc__.split("\n\n")[0],
@@ -110,14 +116,14 @@ def _parser() -> argparse.ArgumentParser:
     train.add_argument("--device", help="cpu, cuda or auto (default: the configuration's)")
     train.add_argument("--evaluate", action="store_true", help="also evaluate on the split's test meshes")
 
-    segment = commands.add_parser("segment", help="segment a mesh file with a trained model",
-                                  description="Write a face-coloured PLY and a per-face label file (one 0-based label per line).")
+    segment = commands.add_parser("segment", help="segment a mesh file with a trained model", description=SEGMENT_DESCRIPTION)
     segment.add_argument("paths", nargs="+", type=Path, metavar="[MODEL] MESH",
                          help=f"a model file written by `anseg train` (or --model), then the {mesh_help}")
     segment.add_argument("-m", "--model", dest="model_name", metavar="NAME_OR_FILE",
                          help="a pretrained model listed by `anseg models` (e.g. psb/Human), or a model file")
     segment.add_argument("-o", "--output", type=Path, help="coloured PLY to write (default: <mesh>_labels.ply)")
-    segment.add_argument("--labels", type=Path, help="label file to write (default: <output>.txt)")
+    segment.add_argument("--labels", type=Path,
+                         help="label file to write, one line per face of the mesh file (default: <output>.txt)")
     segment.add_argument("--html", type=Path, metavar="FILE",
                          help="also write a standalone HTML view (opens in any browser, no server): the labels, "
                               "every level with its attention, the confidence and a legend")
@@ -225,8 +231,8 @@ def _print_scores(scores: dict) -> None:
 
 
 def _segment(args) -> None:
-    from anseg import load_mesh, repair
-    from anseg.mesh import WRITABLE_SUFFIXES
+    from anseg import repair
+    from anseg.mesh_files import WRITABLE_SUFFIXES, load_mesh_with_faces
 
     if args.model_name is not None:
         if len(args.paths) != 1:
@@ -242,14 +248,16 @@ def _segment(args) -> None:
     if output.suffix.lower() not in WRITABLE_SUFFIXES:
         raise ValueError(f"{output}: cannot write {output.suffix!r} (the coloured mesh is one of {', '.join(WRITABLE_SUFFIXES)})")
     _check_outputs(output, label_path, args.html)
-    mesh = input_mesh = load_mesh(args.mesh, validate=not args.repair)
+    mesh, file_face = load_mesh_with_faces(args.mesh, validate=not args.repair)
+    input_mesh = mesh
     face_map = None
     if args.repair:
         mesh, face_map = repair(mesh)
     model = _load_model(model_file)
 
     from anseg.cache import atomic_write_all
-    from anseg.mesh import labels_for_input_faces, save_mesh
+    from anseg.mesh import labels_for_input_faces
+    from anseg.mesh_files import labels_for_file_faces, save_mesh
     from anseg.pipeline import segment
     from anseg.viz import label_colors
 
@@ -262,6 +270,7 @@ def _segment(args) -> None:
     labels = result.labels
     if face_map is not None:  # back to the input faces, dropped ones included
         labels = labels_for_input_faces(result.labels, face_map, input_mesh)
+    labels = labels_for_file_faces(labels, file_face, input_mesh)  # one line per face of the file, polygons whole
     writes = {output: lambda tmp: save_mesh(tmp, mesh, face_colors=label_colors(result.labels, model.n_classes)),
               label_path: lambda tmp: np.savetxt(tmp, labels, fmt="%d")}
     if args.html:
@@ -270,7 +279,8 @@ def _segment(args) -> None:
         writes[args.html] = lambda tmp: write_html(result, model.label_names, tmp, title=args.mesh.name)
     atomic_write_all(writes)  # all the outputs or none, each complete, even when interrupted
     counts = np.bincount(result.labels, minlength=model.n_classes)
-    print(f"{mesh.n_faces} faces -> {output} and {label_path}" + (f" (view: {args.html})" if args.html else ""))
+    triangles = f" ({mesh.n_faces} triangles)" if mesh.n_faces != len(labels) else ""
+    print(f"{len(labels)} faces{triangles} -> {output} and {label_path}" + (f" (view: {args.html})" if args.html else ""))
     for name, count in zip(model.label_names, counts):
         print(f"  {name}: {count} faces")
 

@@ -1,9 +1,10 @@
-"""Triangle meshes: the `Mesh` container, loading and saving, checks and repair.
+"""Triangle meshes: the `Mesh` container, its checks and repair (files: :mod:`anseg.mesh_files`).
 
 A `Mesh` is two arrays, ``vertices`` (V, 3) float64 and ``faces`` (F, 3)
 int64, plus derived quantities computed on first use (areas, normals, the
 edge table and the edge-sharing face adjacency). Face order is never changed
-by loading, so per-face label files stay aligned with the faces.
+by loading (:mod:`anseg.mesh_files` reads and writes the formats; a polygon
+becomes adjacent triangles), so per-face label files stay aligned with the file's faces.
 
 Conventions used throughout the package:
 
@@ -17,18 +18,9 @@ Conventions used throughout the package:
 
 from __future__ import annotations
 
-import os
 from functools import cached_property
-from pathlib import Path
 
 import numpy as np
-
-SUPPORTED_SUFFIXES = (".off", ".obj", ".ply", ".stl", ".glb", ".gltf")
-WRITABLE_SUFFIXES = (".off", ".obj", ".ply")
-# STL stores three vertices per triangle and glTF splits vertices at normal and UV seams:
-# only merged do the triangles of these formats share edges
-_PER_CORNER_SUFFIXES = (".stl", ".glb", ".gltf")
-_SCENE_SUFFIXES = (".glb", ".gltf")
 
 
 class MeshError(ValueError):
@@ -308,7 +300,7 @@ def degenerate_faces(mesh: Mesh) -> np.ndarray:
     return mesh.face_areas <= DEGENERATE_EPS * longest_squared
 
 
-def _merge_identical_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def merge_identical_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One vertex per distinct coordinate triple, in order of first appearance; faces re-indexed, their order kept."""
     _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
     rank = np.empty_like(first)
@@ -343,7 +335,7 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     used, faces = np.unique(mesh.faces, return_inverse=True)  # sorted: the vertex order stays
     if not np.isfinite(mesh.vertices[used]).all():
         raise MeshError("cannot repair NaN or infinite coordinates")
-    vertices, faces = _merge_identical_vertices(mesh.vertices[used], faces.reshape(-1, 3))
+    vertices, faces = merge_identical_vertices(mesh.vertices[used], faces.reshape(-1, 3))
     merged = Mesh(vertices, faces)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
     keep &= ~degenerate_faces(merged)
@@ -402,129 +394,3 @@ def labels_for_input_faces(labels, face_map, input_mesh: Mesh, voters: int = 3) 
             best = values[counts == counts.max()]
             out[face] = labels[near[0]] if labels[near[0]] in best else best[0]
     return out
-
-
-def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
-    """Read a triangle mesh in any of :data:`SUPPORTED_SUFFIXES`, keeping face order.
-
-    OFF, OBJ and PLY keep their vertex order too. STL stores three vertices
-    per triangle and glTF/GLB repeats a vertex at every normal or UV seam,
-    so there vertices with identical coordinates are merged (in order of
-    first appearance): otherwise no two triangles would share an edge. A
-    glTF/GLB scene of several meshes is read as one mesh: every instance
-    moved by its node's transform, concatenated in scene order, then merged
-    as above, so parts that meet at identical vertices are joined; points and
-    lines are left out, and a scene without triangles is a MeshError.
-
-    With ``validate`` (the default) the mesh is checked and a MeshError says
-    what is wrong; pass ``validate=False`` and call :func:`repair` to fix
-    duplicate vertices and degenerate or duplicate faces.
-
-    A file that cannot be read (a folder, empty, truncated, damaged, or in
-    another format than its suffix says) is a one-line MeshError about the
-    file, in our words: the reader's own exception (chained as the cause)
-    speaks of its internals, not of the file. An OFF or PLY file holding
-    fewer vertices or faces than its header declares is truncated, even
-    where the reader stops quietly at the end.
-    """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if path.is_dir():
-        raise MeshError(f"{path}: is a directory, not a mesh file")
-    if not path.is_file():
-        raise MeshError(f"{path}: no such file")
-    if suffix not in SUPPORTED_SUFFIXES:
-        raise MeshError(f"{path}: unsupported format {path.suffix!r} (expected one of {', '.join(SUPPORTED_SUFFIXES)})")
-    if path.stat().st_size == 0:
-        raise MeshError(f"{path}: the file is empty")
-    declared = _check_declared_counts(path)
-    import trimesh
-
-    unreadable = f"{path}: cannot read mesh: not a complete {suffix[1:].upper()} file (truncated or damaged?)"
-    try:  # a scene comes back as its meshes, transformed and concatenated
-        loaded = trimesh.load(path, process=False, maintain_order=True, force="mesh")
-    except Exception as exc:  # trimesh raises many types on bad files
-        raise MeshError(unreadable) from exc
-    try:  # trimesh hands back a ragged array for a vertex line short of a coordinate
-        faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64).reshape(-1, 3)
-        vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64).reshape(-1, 3)
-    except ValueError as exc:
-        raise MeshError(f"{path}: cannot read mesh (a vertex or face without 3 entries)") from exc
-    if suffix in _SCENE_SUFFIXES and len(faces) == 0:
-        raise MeshError(f"{path}: the scene holds no triangle mesh")
-    if len(faces) == 0:
-        raise MeshError(f"{path}: cannot read mesh: no triangles in it (truncated, damaged, or not in "
-                        f"{suffix[1:].upper()} format?)")
-    read = {"vertex": len(vertices), "face": len(faces)}  # a reader may split polygons: more faces, never fewer
-    short = [f"{read[kind]} of the {n} {kind} elements" for kind, n in declared.items() if read[kind] < n]
-    if short:
-        raise MeshError(f"{path}: holds only {' and '.join(short)} its header declares (truncated?)")
-    in_range = len(faces) == 0 or (faces.min() >= 0 and faces.max() < len(vertices))
-    if suffix in _PER_CORNER_SUFFIXES and in_range:  # bad indices are left for validate to report
-        vertices, faces = _merge_identical_vertices(vertices, faces)
-    mesh = Mesh(vertices, faces)
-    if validate:
-        try:
-            mesh.validate()
-        except MeshError as exc:
-            raise MeshError(f"{path}: {exc}") from None
-    return mesh
-
-
-# the fewest bytes a vertex or face can take in a file: "0 0 0\n" and "3 0 1 2\n" as text, 3 x 4 bytes in binary PLY
-_MIN_TEXT_BYTES = {"vertex": 6, "face": 8}
-_MIN_BINARY_BYTES = {"vertex": 12, "face": 13}
-
-
-def _is_count(word: str) -> bool:
-    """ASCII digits only: str.isdigit() also takes characters such as '²' that int() refuses."""
-    return word.isascii() and word.isdigit()
-
-
-def _check_declared_counts(path: Path) -> dict[str, int]:
-    """Refuse an OFF or PLY header that declares more elements than the file can hold, before anything is allocated.
-
-    Returns the declared counts (``vertex``, ``face``; empty for other formats), for the caller to compare with what was read.
-    """
-    size = path.stat().st_size
-    with open(path, "rb") as handle:
-        head = handle.read(4096).decode("latin-1")
-    lines = [line.split("#")[0].strip() for line in head.splitlines()]
-    counts, minimum = {}, _MIN_TEXT_BYTES
-    if path.suffix.lower() == ".off":
-        words = " ".join(line for line in lines if line).split()
-        if words and words[0].upper().endswith("OFF"):
-            words = words[1:]
-        if len(words) >= 2 and all(_is_count(w) for w in words[:2]):
-            counts = {"vertex": int(words[0]), "face": int(words[1])}
-    elif path.suffix.lower() == ".ply":
-        for line in lines:
-            parts = line.split()
-            if len(parts) == 3 and parts[0] == "element" and parts[1] in minimum and _is_count(parts[2]):
-                counts[parts[1]] = int(parts[2])
-            elif len(parts) >= 2 and parts[0] == "format" and parts[1].startswith("binary"):
-                minimum = _MIN_BINARY_BYTES
-            elif line == "end_header":
-                break
-    needed = sum(minimum[kind] * n for kind, n in counts.items())
-    if needed > size:
-        declared = ", ".join(f"{n} {kind} elements" for kind, n in counts.items())
-        raise MeshError(f"{path}: the header declares {declared}, more than its {size} bytes can hold (truncated or damaged)")
-    return counts
-
-
-def save_mesh(path: str | os.PathLike, mesh: Mesh, face_colors: np.ndarray | None = None) -> None:
-    """Write a mesh in any of :data:`WRITABLE_SUFFIXES`; ``face_colors`` (F, 3 or 4) uint8 are kept in PLY.
-
-    Only formats that keep vertex and face order are written, so that a
-    per-face label file stays aligned with what was saved.
-    """
-    path = Path(path)
-    if path.suffix.lower() not in WRITABLE_SUFFIXES:
-        raise MeshError(f"{path}: cannot write {path.suffix!r} (meshes are written as one of {', '.join(WRITABLE_SUFFIXES)})")
-    import trimesh
-
-    out = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    if face_colors is not None:
-        out.visual.face_colors = np.asarray(face_colors, dtype=np.uint8)
-    out.export(path)

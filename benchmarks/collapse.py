@@ -34,7 +34,8 @@ import numpy as np
 
 from anseg.collapse import downsample
 from anseg.hierarchy import upsample_through
-from anseg.mesh import Mesh, load_mesh
+from anseg.mesh import Mesh
+from anseg.mesh_files import load_mesh
 
 METHODS = ("nonuniform", "uniform", "igl")
 TARGET_FACES = 25_000

@@ -10,7 +10,7 @@ import pytest
 from conftest import grid_mesh
 
 from anseg.cache import atomic_write
-from anseg.mesh import save_mesh
+from anseg.mesh_files import save_mesh
 
 WRITERS = {
     "labels.txt": lambda tmp: np.savetxt(tmp, np.arange(4), fmt="%d"),

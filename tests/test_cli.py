@@ -10,7 +10,7 @@ import pytest
 from conftest import grid_mesh
 
 from anseg.cli import main
-from anseg.mesh import save_mesh
+from anseg.mesh_files import save_mesh
 
 
 def run_cli(*args, cwd=None):

@@ -12,7 +12,8 @@ from conftest import grid_mesh
 
 from anseg import cli
 from anseg.cli import main
-from anseg.mesh import Mesh, save_mesh
+from anseg.mesh import Mesh
+from anseg.mesh_files import save_mesh
 
 FAR = 1e9
 

@@ -37,7 +37,7 @@ from conftest import (
 )
 
 from anseg import datasets
-from anseg.mesh import save_mesh
+from anseg.mesh_files import save_mesh
 from anseg.pipeline import SegmentConfig, Segmenter, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
@@ -49,7 +49,7 @@ TOKEN = "anseg-test"
 NOTEBOOK = """\
 import torch
 from anseg import viewer
-from anseg.mesh import load_mesh
+from anseg.mesh_files import load_mesh
 from anseg.pipeline import Segmenter, segment
 torch.set_num_threads(1)
 model = Segmenter.load("model.pt")

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from conftest import grid_mesh
 
-from anseg.mesh import Mesh, MeshError, load_mesh, repair, save_mesh
+from anseg.mesh import Mesh, MeshError, repair
+from anseg.mesh_files import load_mesh, save_mesh
 
 TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
 TETRA_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])

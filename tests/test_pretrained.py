@@ -11,7 +11,7 @@ import torch
 
 from anseg import datasets, pipeline, pretrained
 from anseg.cli import main
-from anseg.mesh import save_mesh
+from anseg.mesh_files import save_mesh
 from anseg.pipeline import SegmentConfig, Segmenter, segment
 from anseg.study.store import REPO
 from anseg.train import TrainConfig, fit

@@ -8,7 +8,8 @@ from conftest import grid_mesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from anseg.mesh import Mesh, MeshError, load_mesh, save_mesh
+from anseg.mesh import Mesh, MeshError
+from anseg.mesh_files import load_mesh, save_mesh
 
 # file name -> trimesh's exporter, or None for save_mesh
 FORMATS = {"mesh.off": None, "mesh.obj": None, "mesh.ply": None, "binary.stl": "stl", "ascii.stl": "stl_ascii", "mesh.glb": "glb"}

@@ -119,7 +119,7 @@ def test_a_browser_draws_a_repaired_stl_scan_from_the_command_line(scan_page, tm
 
 def test_the_command_line_writes_a_page_without_reaching_off_the_machine(page, tmp_path):
     """`anseg segment --html` in a child process whose every outside lookup or connection fails and is logged."""
-    from anseg.mesh import save_mesh
+    from anseg.mesh_files import save_mesh
 
     path, result, _ = page
     save_mesh(tmp_path / "mesh.off", result.levels[0].mesh)

@@ -11,7 +11,8 @@ import numpy as np
 from tqdm import tqdm
 
 from anseg.datasets.archive import DatasetError
-from anseg.mesh import Mesh, MeshError, load_mesh, repair
+from anseg.mesh import Mesh, MeshError, repair
+from anseg.mesh_files import load_mesh
 
 SPLITS = ("train", "test", "all")
 PROGRESS_MIN_MESHES = 10  # show a progress bar when loading at least this many meshes

@@ -38,7 +38,8 @@ from anseg.datasets.common import (
 )
 from anseg.datasets.coseg import zero_based
 from anseg.datasets.meshcnn import majority_of_three
-from anseg.mesh import SUPPORTED_SUFFIXES, Mesh
+from anseg.mesh import Mesh
+from anseg.mesh_files import SUPPORTED_SUFFIXES
 
 FOLDER = "maron"
 
