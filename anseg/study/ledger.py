@@ -1,37 +1,22 @@
 """The claims ledger: every claim of the paper, our verdict and the evidence that decides it, read from ``results/``.
 
 One row per claim: what the paper says, what our stored results say, and a
-verdict. Nothing is typed in: every number comes from the result files the
-notebooks write (``results/*.csv``, the run records of ``results/runs/``),
-so the ledger changes when they do. A missing file makes its claim
-``cannot be tested here`` and says which.
+verdict. Every number comes from the result files the notebooks write
+(``results/*.csv``, the run records of ``results/runs/``); a missing file
+makes its claim ``cannot be tested here`` and says which.
 
-The rule, one for every row (:data:`RULE`, shown above the ledger's table):
-
-* each claim becomes a **paired effect in its favour** (positive = what the
-  paper says), measured over units: a (category, split) where the results
-  have splits, a test mesh where the claim is about meshes;
-* its mean and **95 % percentile bootstrap interval** (:data:`DRAWS` draws,
-  seed :data:`SEED`): over (category, split) two-stage, the categories
-  resampled with replacement, then the splits inside each drawn category
-  (the mean is that of the category means); over meshes one stage;
-* ``reproduced`` when the interval lies above 0, ``not reproduced`` when it
-  lies below 0, ``not distinguishable`` when it holds 0 (or when there is a
-  single unit: no interval). A claim of several parts is reproduced when
-  every part is, not reproduced when any part is, else not distinguishable;
-* ``cannot be tested here`` where we have no run that measures the claim,
-  with the reason.
-
-Why one rule: a tie must read the same in every row (neither for the paper
-nor against it), and a difference must be judged against its own spread,
-not against a threshold picked per claim. Two-stage, because categories
-differ far more than splits of one category, and a claim about "PSB" is a
-claim about categories. A claim that names a number (PSB 95.29) becomes
-ours minus that number, so "not distinguishable" there means we cannot tell
-our accuracy from the paper's.
-
-Not a claim but a limitation the paper states: the method needs manifold
-meshes (:data:`LIMITATION`).
+One rule for every row (:data:`RULE`, shown above the table): the claim
+becomes a paired effect in its favour, over units (a (category, split), or a
+test mesh); its mean and 95 % percentile bootstrap interval (:data:`DRAWS`
+draws, seed :data:`SEED`; two-stage over categories, then the splits inside
+each) read ``reproduced`` above 0, ``not reproduced`` below 0, ``not
+distinguishable`` when it holds 0 or rests on one unit; a claim of several
+parts needs every part. One rule, so that a tie reads the same in every row
+and a difference is judged against its own spread; two-stage, because
+categories differ far more than splits. A claim that names a number becomes
+ours minus that number. Where the arms read runs of other code revisions,
+the row says so (:mod:`anseg.study.revisions`). Not a claim but a
+limitation the paper states: the method needs manifold meshes (:data:`LIMITATION`).
 """
 
 from __future__ import annotations
