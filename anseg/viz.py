@@ -375,9 +375,12 @@ def paper_beside_ours(
         raise ValueError("need at least one group and one row")
     def value(table, row, group):
         return float(table.get(row, {}).get(group, np.nan))
-    shown = [value(ours, r, g) + s * value(spread, r, g) for r in rows for g in groups for s in (-1, 1)]
+    # a spread that is not there (one split: NaN) draws no whisker and widens nothing
+    shown = [value(ours, r, g) + s * np.nan_to_num(value(spread, r, g)) for r in rows for g in groups for s in (-1, 1)]
     shown += [value(paper, r, g) for r in rows for g in groups]
     shown = np.asarray([v for v in shown if np.isfinite(v)])
+    if not len(shown):
+        raise ValueError("no finite value to draw")
     low, high = shown.min() - margin, min(shown.max() + margin, 100.0 + margin / 2)
     fig, axes = plt.subplots(1, len(groups), figsize=(1.0 + 2.4 * len(groups) * max(1.0, len(rows) / 4), 3.8),
                              sharey=True, squeeze=False)

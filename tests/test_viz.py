@@ -150,3 +150,15 @@ def test_bar_plot_writes_a_png_with_one_bar_per_group_and_series(tmp_path):
     assert ax.get_ylabel() == "accuracy" and [t.get_text() for t in ax.get_xticklabels()] == ["Human", "Teddy"]
     plt.close(fig)
     assert path.is_file()
+
+
+def test_paper_beside_ours_draws_one_split_without_whiskers_and_missing_paper_rows(tmp_path):
+    nan = float("nan")
+    ours = {"nonuniform": {"A": 80.0, "B": 90.0}, "none": {"A": 75.0, "B": 85.0}}
+    spread = {"nonuniform": {"A": nan, "B": nan}, "none": {"A": nan, "B": nan}}  # one split: no spread
+    path = tmp_path / "plot.png"
+    for paper in ({"nonuniform": {"A": 94.0, "B": 96.0}}, {}):  # the paper's numbers, or none (synthetic data)
+        viz.paper_beside_ours(["A", "B"], ["nonuniform", "none"], ours, spread, paper, path, "accuracy (%)")
+        assert path.stat().st_size > 0
+    with pytest.raises(ValueError, match="no finite value"):
+        viz.paper_beside_ours(["A"], ["none"], {"none": {"A": nan}}, {"none": {"A": nan}}, {}, path, "accuracy (%)")
