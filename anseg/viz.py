@@ -7,8 +7,7 @@
   clipped), so that the levels of one hierarchy come out framed alike.
 * :func:`render_panel` puts several renders side by side with titles and an
   optional label legend (:func:`legend_handles`) or colour bar.
-* :func:`line_plot` (Fig. 11: accuracy against cycles, one line per ratio)
-  and :func:`bar_plot` (Fig. 12: grouped bars per category and feature set).
+* :func:`bar_plot` (Fig. 12: grouped bars per category and feature set).
 * :func:`paper_beside_ours` (Table IV: the paper's value beside ours with
   whiskers, one panel per category), :func:`line_panels` (Fig. 11: small
   multiples with a band) and :func:`segmentation_rows` (Figs. 5-8: meshes
@@ -261,45 +260,6 @@ def label_panel(
               for mesh, _, labels in views]
     return render_panel(images, [text for _, text, _ in views], path, legend=legend_handles(label_names),
                         title=title, ncols=ncols, caption=caption)
-
-
-def line_plot(
-    x: Sequence[float],
-    series: Mapping[str, Sequence[float]],
-    path,
-    xlabel: str,
-    ylabel: str,
-    title: str | None = None,
-    legend_title: str | None = None,
-    bands: Mapping[str, Sequence[float]] | None = None,
-):
-    """One coloured line with markers per entry of ``series`` (name -> y over ``x``), saved as a PNG at ``path``.
-
-    Missing values (NaN) leave gaps. The paper's Fig. 11: x the number of
-    cycles, one line per downsampling ratio, y the accuracy. ``bands`` (name ->
-    a half-width per x, e.g. the standard deviation over splits) shades y ± it.
-    """
-    if not series:
-        raise ValueError("no series to plot")
-    fig, ax = plt.subplots(figsize=(6.0, 4.0))
-    colours = palette(len(series)) / 255.0
-    for (name, ys), colour in zip(series.items(), colours):
-        ys = np.asarray(ys, dtype=float)
-        if ys.shape != (len(x),):
-            raise ValueError(f"series {name!r} has {ys.size} values for {len(x)} x positions")
-        ax.plot(x, ys, marker="o", color=tuple(colour), label=str(name))
-        if bands is not None and name in bands:
-            half = np.asarray(bands[name], dtype=float)
-            ax.fill_between(x, ys - half, ys + half, color=tuple(colour), alpha=0.15, linewidth=0)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.set_xticks(list(x))
-    ax.grid(alpha=0.3)
-    if title:
-        ax.set_title(title)
-    ax.legend(title=legend_title, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    _save(fig, path)
-    return fig
 
 
 def bar_plot(

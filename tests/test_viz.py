@@ -127,18 +127,21 @@ def test_label_panel_renders_each_view(offscreen, tmp_path):
     assert path.is_file()
 
 
-def test_line_plot_writes_a_png_with_labelled_axes(tmp_path):
+def test_line_panels_write_one_labelled_panel_per_entry_and_ring_the_marked_point(tmp_path):
     path = tmp_path / "fig11.png"
-    fig = viz.line_plot([1, 2, 4], {"r = 0.3": [0.8, 0.85, np.nan], "r = 0.5": [0.82, 0.9, 0.91]}, path,
-                        xlabel="cycles N", ylabel="accuracy", legend_title="ratio")
-    ax = fig.axes[0]
-    assert ax.get_xlabel() == "cycles N" and ax.get_ylabel() == "accuracy"
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["r = 0.3", "r = 0.5"]
-    assert ax.lines[0].get_color() != ax.lines[1].get_color()
+    mean = [0.8, 0.85, np.nan]
+    panels = {"removing 0.3": (mean, [0.78, 0.83, np.nan], [0.82, 0.87, np.nan]),
+              "removing 0.5": ([0.82, 0.9, 0.91], [0.8, 0.88, 0.9], [0.84, 0.92, 0.92])}
+    fig = viz.line_panels([1, 2, 4], panels, path, xlabel="cycles N", ylabel="accuracy",
+                          mark=("removing 0.5", 4), mark_label="the paper's choice")
+    shown = [ax for ax in fig.axes if ax.get_title()]
+    assert [ax.get_title() for ax in shown] == ["removing 0.3", "removing 0.5"]
+    assert shown[0].get_xlabel() == "cycles N" and shown[0].get_ylabel() == "accuracy"
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["the paper's choice"]
     plt.close(fig)
     assert path.is_file() and min(_png_size(path)) > 100
-    with pytest.raises(ValueError, match="values"):
-        viz.line_plot([1, 2], {"r": [0.1]}, tmp_path / "bad.png", xlabel="x", ylabel="y")
+    with pytest.raises(ValueError, match="one mean, low and high"):
+        viz.line_panels([1, 2], {"r": ([0.1], [0.1], [0.1])}, tmp_path / "bad.png", xlabel="x", ylabel="y")
 
 
 def test_bar_plot_writes_a_png_with_one_bar_per_group_and_series(tmp_path):
