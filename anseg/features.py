@@ -1,7 +1,7 @@
 """Per-face descriptors (Algorithm 1, line 1; section III-A) and their on-disk cache.
 
 Every group is computed on a copy of the mesh scaled to unit total area and centred
-(:meth:`Mesh.normalized`), so all are scale invariant, and all are rotation invariant (the SDF
+(:meth:`Mesh.unit_area`), so all are scale invariant, and all are rotation invariant (the SDF
 rays are laid out in each face's own frame). Nothing is random, so results are deterministic.
 Groups (columns: :func:`feature_names`; each group function's docstring gives its formulas):
 ``edge`` the paper's edge-encoded vector of the three lengths; ``angles`` the sorted inner angles;
@@ -157,7 +157,7 @@ class _Geometry:
     """The unit-area, centred mesh and the quantities several groups share, each computed once."""
 
     def __init__(self, mesh: Mesh, settings: FeatureSettings):
-        self.mesh = proxy.unit_area(mesh)
+        self.mesh = mesh.unit_area()
         self.settings = settings
 
     @cached_property

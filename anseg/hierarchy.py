@@ -64,10 +64,6 @@ class Hierarchy(Sequence):
         """The face of level ``index`` that each input face became (None for the input level itself)."""
         return compose(self.records(index)) if index else None
 
-    def input_to_levels(self) -> list[np.ndarray | None]:
-        """:meth:`input_to_level` for each level."""
-        return [self.input_to_level(index) for index in range(len(self))]
-
     def labels_on(self, index: int, labels: np.ndarray, n_classes: int) -> np.ndarray:
         """Input-face ``labels`` on level ``index``: each face takes the area majority of the input faces it stands for."""
         return pool_labels(self.records(index), labels, self[0].mesh.face_areas, n_classes) if index else labels

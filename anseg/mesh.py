@@ -218,13 +218,16 @@ class Mesh:
         return used - len(self.edges) + self.n_faces
 
     # ------------------------------------------------------------- utilities
-    def normalized(self) -> "Mesh":
-        """A copy scaled to unit total surface area and centred at the area-weighted centroid."""
+    def unit_area(self) -> "Mesh":
+        """A copy scaled to unit total surface area, centred at the area-weighted centroid, and without unreferenced
+        vertices (they make Laplacians singular): the frame every descriptor is computed in."""
         area = self.face_areas.sum()
         if not area > 0:
             raise MeshError("mesh has zero total area")
         centre = (self.face_centroids * self.face_areas[:, None]).sum(axis=0) / area
-        return Mesh((self.vertices - centre) / np.sqrt(area), self.faces)
+        vertices = (self.vertices - centre) / np.sqrt(area)
+        used, faces = np.unique(self.faces, return_inverse=True)
+        return Mesh(vertices, self.faces) if len(used) == self.n_vertices else Mesh(vertices[used], faces.reshape(-1, 3))
 
     def validate(self) -> "Mesh":
         """Raise MeshError unless the mesh is usable; return self for chaining.

@@ -42,7 +42,8 @@ from anseg.cluster import PatchLayout
 _CHUNK_ELEMENTS = 1 << 20
 # Switches retired after validation (docs/decisions.md), each with the value that meant "off": a model file or a
 # stored setting that holds a retired switch at that value reads as today's model; any other value is refused.
-RETIRED = {"position_frequencies": 0, "position_pairs": 0, "heat_bias_pairs": 0}
+RETIRED = {"position_frequencies": 0, "position_pairs": 0, "heat_bias_pairs": 0,
+           "coarse_levels": 0, "coarse_context": False}
 
 
 @dataclass
@@ -62,12 +63,6 @@ class ModelConfig:
     eigenvectors' signs and by rotations inside an eigenspace of equal
     eigenvalues. Switches that validation rejected are retired
     (:data:`RETIRED`); their runs replay at their own revision.
-
-    ``coarse_levels``: a second head for the input level reads, beside a face's
-    embedding and its token's context, the context of the face it became on
-    each of that many coarser levels (carried down through the collapse
-    records), U-Net style, so the coarse levels' wide view reaches the input
-    faces through the network instead of a vote.
     """
 
     in_features: int
@@ -78,7 +73,6 @@ class ModelConfig:
     patch_size: int = 16
     dropout: float = 0.0
     init_std: float = math.sqrt(0.001)  # the paper's N(0, 0.001), read as variance
-    coarse_levels: int = 0  # coarser levels whose context the input level's second head reads (class docstring)
     detach_share: bool = False  # the attention loss reaches the share only through the tokens (class docstring)
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
     spectral_pairs: int = 0  # eigenpairs of the SpectralInput the model reads (0: none)
@@ -100,8 +94,6 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.diffusion_blocks must be >= 0, got {self.diffusion_blocks}")
         if self.diffusion_blocks and not self.spectral_pairs:
             raise ValueError("ModelConfig.diffusion_blocks need a spectrum to read (spectral_pairs > 0)")
-        if self.coarse_levels < 0 or (self.coarse_levels and not self.depth):
-            raise ValueError(f"ModelConfig.coarse_levels must be >= 0, and needs depth > 0, got {self.coarse_levels}")
 
 
 class SpectralInput(NamedTuple):
@@ -118,19 +110,10 @@ class SpectralInput(NamedTuple):
 
 
 class Output(NamedTuple):
-    """Per-face class logits (F, C), attention values (F,) with mean 1 (None when not asked for), and context.
-
-    ``context`` (T, W) is every token after the transformer and ``patch`` (F,)
-    the token of every face, so ``context[patch]`` is what the coarse-context
-    head of a finer level reads. Kept per token because most callers never
-    read it, and gathering it per face costs an (F, W) copy. None for a
-    depth-0 model.
-    """
+    """Per-face class logits (F, C) and attention values (F,) with mean 1 (None when not asked for)."""
 
     logits: torch.Tensor
     attention: torch.Tensor | None
-    context: torch.Tensor | None = None
-    patch: torch.Tensor | None = None
 
 
 def received_attention(q: torch.Tensor, k: torch.Tensor, chunk: int | None = None, scale: float | None = None) -> torch.Tensor:
@@ -271,8 +254,6 @@ class AttentionSegmenter(nn.Module):
         self.norm_out = nn.LayerNorm(width)
         context = width if config.depth else 0  # depth 0: the face's own embedding only
         self.head = self._head(width + context)
-        # the input level's head with the coarse levels' context beside its own
-        self.context_head = self._head(2 * width + config.coarse_levels * width) if config.coarse_levels else None
         for module in self.modules():
             if isinstance(module, nn.Linear):
                 nn.init.normal_(module.weight, mean=0.0, std=config.init_std)
@@ -285,7 +266,7 @@ class AttentionSegmenter(nn.Module):
 
     def forward(
         self, x: torch.Tensor, layout: PatchLayout, need_attention: bool = True, attention_grad: bool = False,
-        coarse: torch.Tensor | None = None, spectrum: SpectralInput | None = None,
+        spectrum: SpectralInput | None = None,
     ) -> Output:
         """Logits (F, C), attention (F,), and context (T, W) with each face's token (F,) of one mesh.
 
@@ -295,8 +276,6 @@ class AttentionSegmenter(nn.Module):
         received-attention pass (as costly as one attention layer) when only the
         logits are wanted, e.g. in most training steps; ``attention_grad=True``
         returns attention with its gradient (see the module docstring).
-        ``coarse`` (F, coarse_levels x W): the context of each face's face on
-        the coarser levels, read by the coarse-context head (input level only).
         ``spectrum``: the level's eigenbasis, for a model with ``spectral_pairs``.
 
         The per-face layers run on the F faces, not on the padded grid, and
@@ -309,10 +288,6 @@ class AttentionSegmenter(nn.Module):
         if layout.n_faces != x.shape[0] or layout.patch_size != self.config.patch_size:
             raise ValueError(f"the layout places {layout.n_faces} faces in patches of {layout.patch_size}; "
                              f"x has {x.shape[0]} faces and the model takes patches of {self.config.patch_size}")
-        if coarse is not None and (self.context_head is None
-                                   or coarse.shape != (x.shape[0], self.config.coarse_levels * self.config.width)):
-            raise ValueError(f"coarse context must be (faces, {self.config.coarse_levels} x {self.config.width}) "
-                             f"for a model with coarse_levels={self.config.coarse_levels}, got {tuple(coarse.shape)}")
         if self.config.spectral_pairs and (spectrum is None or spectrum.basis.shape != (x.shape[0], self.config.spectral_pairs)):
             raise ValueError(f"this model reads a spectrum of {self.config.spectral_pairs} eigenpairs per face, got "
                              f"{None if spectrum is None else tuple(spectrum.basis.shape)}")
@@ -329,7 +304,7 @@ class AttentionSegmenter(nn.Module):
         if not self.blocks:  # the per-face classifier (module docstring)
             if attention_grad:
                 raise ValueError("a depth-0 model has no attention to train")
-            return Output(self.head(embedded), x.new_ones(len(x)) if need_attention else None, None)
+            return Output(self.head(embedded), x.new_ones(len(x)) if need_attention else None)
         patch = torch.as_tensor(layout.patch_of_face, device=x.device)
         # softmax of the scores over each patch's faces, on the grid where padding holds -inf
         scores = layout.to_tokens(self.share_score(embedded).squeeze(-1), fill=-math.inf)
@@ -338,10 +313,7 @@ class AttentionSegmenter(nn.Module):
         for block in self.blocks:
             h, q, k = block(h)
         context = self.norm_out(h)
-        if coarse is not None:
-            logits = self._head_on_faces(self.context_head, embedded, context, patch, coarse)
-        else:
-            logits = self._head_on_faces(self.head, embedded, context, patch)
+        logits = self._head_on_faces(self.head, embedded, context, patch)
         attention = None
         if attention_grad:
             pooling = share.detach() if self.config.detach_share else share
@@ -349,17 +321,14 @@ class AttentionSegmenter(nn.Module):
         elif need_attention:
             with torch.no_grad():
                 attention = received_attention(q.detach(), k.detach(), scale=self._scale)[patch] * share.detach() * len(x)
-        return Output(logits, attention, context, patch)
+        return Output(logits, attention)
 
     @staticmethod
-    def _head_on_faces(head: nn.Sequential, embedded: torch.Tensor, context: torch.Tensor, patch: torch.Tensor,
-                       coarse: torch.Tensor | None = None) -> torch.Tensor:
-        """``head(cat([embedded, context[patch], coarse]))`` with the context's columns applied per token (T rows, not F)."""
+    def _head_on_faces(head: nn.Sequential, embedded: torch.Tensor, context: torch.Tensor, patch: torch.Tensor) -> torch.Tensor:
+        """``head(cat([embedded, context[patch]]))`` with the context's columns applied per token (T rows, not F)."""
         first, width = head[0], embedded.shape[1]
         hidden = (F.linear(embedded, first.weight[:, :width])
                   + F.linear(context, first.weight[:, width : 2 * width], first.bias)[patch])
-        if coarse is not None:
-            hidden = hidden + F.linear(coarse, first.weight[:, 2 * width :])
         return head[1:](hidden)
 
     @property

@@ -14,7 +14,7 @@ classification, the upsampling through the collapse records and the graph cut. C
   to the input faces, keeping the coarse levels' context and the fine level's detail; the
   paper's ``"coarsest"`` lets one heavily collapsed face mislabel every input face it stands
   for. ``"decay"`` weighs level i by 2^-i, so the input level keeps half the vote; ``"finest"``
-  takes the input level alone, for a network with coarse context (:func:`forward_levels`).
+  takes the input level alone.
 * ``local_scale``: on the unit-area mesh the ``edge`` values grow as levels coarsen, far outside
   the level-0 statistics. ``"relative"`` (default) reads them against the level's median edge
   length l (log(e_k / l^k) / k), so a giant face shows as a few units, not thousands;
@@ -333,25 +333,6 @@ def fill_attention(model: Segmenter, levels: Hierarchy, device="cpu") -> Hierarc
     return levels
 
 
-def forward_levels(network: AttentionSegmenter, inputs: list[dict], to_level: list, attention_grad: list[bool],
-                   need_attention: bool = False) -> list:
-    """The network's Output on every level of one mesh, in level order.
-
-    With coarse context (``network.config.coarse_levels``) the coarse levels
-    go first and the input level's head reads their context, carried down to
-    its faces by ``to_level`` (:meth:`Hierarchy.input_to_levels`, as tensors).
-    """
-    with_context = network.config.coarse_levels > 0
-    outputs = [None] * len(inputs)
-    for index in [*range(1, len(inputs)), 0] if with_context else range(len(inputs)):
-        coarse = None
-        if with_context and index == 0:
-            coarse = torch.cat([outputs[i].context[outputs[i].patch][to_level[i]] for i in range(1, len(inputs))], dim=1)
-        outputs[index] = network(**inputs[index], need_attention=need_attention, attention_grad=attention_grad[index],
-                                 coarse=coarse)
-    return outputs
-
-
 def level_output(model: Segmenter, levels: Hierarchy, index: int, device="cpu") -> Output:
     """The network's Output on one level, reusing the logits that build_levels kept from its attention pass.
 
@@ -370,17 +351,10 @@ def class_probabilities(model: Segmenter, levels: Hierarchy, config: SegmentConf
     wanted = {"coarsest": [len(levels) - 1], "finest": [0]}.get(config.combine, range(len(levels)))
     per_level, weights = [], []
     with torch.no_grad():
-        if model.network.config.coarse_levels:
-            inputs = [model_inputs(model, level, index, len(levels), device) for index, level in enumerate(levels)]
-            maps = [torch.as_tensor(m, device=device) if m is not None else None for m in levels.input_to_levels()]
-            outputs = dict(enumerate(forward_levels(model.network, inputs, maps, [False] * len(levels), need_attention=True)))
-        else:  # only the levels whose labels count, reusing the pass that computed their attention
-            outputs = {index: level_output(model, levels, index, device) for index in wanted}
-        for index, out in outputs.items():
+        for index in wanted:  # only the levels whose labels count, reusing the pass that computed their attention
+            out = level_output(model, levels, index, device)
             if levels[index].attention is None:
                 levels[index].attention = out.attention.cpu().numpy()
-        for index in wanted:
-            out = outputs[index]
             probs = torch.softmax(out.logits, dim=1).cpu().numpy().astype(np.float64)
             per_level.append(levels.upsample(index, probs))
             weights.append(0.5 ** index if config.combine == "decay" else 1.0)
@@ -404,9 +378,8 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     for other in ensemble:
         if other.n_classes != model.n_classes or other.config.groups != model.config.groups:
             raise ValueError("an ensemble's models must share their classes and feature groups")
-    if groups is None:
-        groups = features.compute_groups(mesh, config.groups, cache=True, progress=progress)
-    levels = build_levels(mesh, model, config, groups, device)
+    levels = build_levels(mesh, model, config, groups, device, progress)
+    groups = levels[0].groups
     idle = sum(level.record.n_collapses == 0 for level in levels[:-1])
     if idle:
         warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "

@@ -47,7 +47,6 @@ from anseg.pipeline import (
     SegmentConfig,
     Segmenter,
     build_levels,
-    forward_levels,
     input_groups,
     model_inputs,
     segment,
@@ -63,9 +62,7 @@ class TrainConfig:
     ``schedule``: ``"constant"`` keeps ``lr`` for every step (the paper);
     ``"cosine"`` decays it from ``lr`` to 0 over the run's steps, so that the
     last epochs, whose model is the one kept, settle instead of moving at
-    full step size. ``coarse_context`` gives the input level a head that
-    reads the coarse levels' context (:class:`~anseg.model.ModelConfig`); its loss then
-    weighs as much as the coarse levels' together. ``detach_share``: the
+    full step size. ``detach_share``: the
     attention loss does not reach the pooling share directly (:class:`~anseg.model.ModelConfig`).
     ``average_last`` > 0 keeps the average of the weights at the end of each
     of the last that many epochs instead of the last weights (stochastic
@@ -85,7 +82,6 @@ class TrainConfig:
     heads: int = 4
     dropout: float = 0.0
     embed_norm: bool = False
-    coarse_context: bool = False
     detach_share: bool = False
     average_last: int = 20
     recollapse_every: int = 5
@@ -150,15 +146,13 @@ class _Example:
     targets: list[torch.Tensor]
     weights: list[torch.Tensor]
     near_boundary: list[torch.Tensor | None]  # attention targets of the levels that get collapsed
-    to_level: list[torch.Tensor | None]  # the face each input face became on every coarse level
     first_layout: PatchLayout  # the input level's, the same at every rebuild
 
 
 def _examples(model: Segmenter, mesh, labels, groups, train: TrainConfig, device, first_layout=None) -> _Example:
     levels = build_levels(mesh, model, model.config, groups, device, first_layout=first_layout)
     supervise = model.config.mode == "nonuniform" and train.attention_weight > 0
-    maps = [torch.as_tensor(m, device=device) if m is not None else None for m in levels.input_to_levels()]
-    example = _Example([], [], [], [], maps, levels[0].layout)
+    example = _Example([], [], [], [], levels[0].layout)
     for index, (level, target) in enumerate(zip(levels, levels.labels_on_every_level(labels, model.n_classes))):
         area = level.mesh.face_areas
         example.inputs.append(model_inputs(model, level, index, len(levels), device))
@@ -182,21 +176,15 @@ def _attention_loss(attention: torch.Tensor, near_boundary: torch.Tensor) -> tor
 
 
 def _loss(model: Segmenter, example: _Example, train: TrainConfig) -> tuple[torch.Tensor, float]:
-    """Area-weighted cross-entropy averaged over levels (plus the attention term), and the coarsest level's accuracy.
-
-    With coarse context the input level's loss weighs as much as all coarse levels together.
-    """
-    bands = example.near_boundary
-    outputs = forward_levels(model.network, example.inputs, example.to_level, [band is not None for band in bands])
-    coarse_levels = model.network.config.coarse_levels
-    level_weights = [coarse_levels if coarse_levels and index == 0 else 1 for index in range(len(outputs))]
+    """Area-weighted cross-entropy averaged over levels (plus the attention term), and the coarsest level's accuracy."""
     total = 0.0
-    for out, target, weight, band, level_weight in zip(outputs, example.targets, example.weights, bands, level_weights):
-        total = total + level_weight * (F.cross_entropy(out.logits, target, reduction="none") * weight).sum()
+    for inputs, target, weight, band in zip(example.inputs, example.targets, example.weights, example.near_boundary):
+        out = model.network(**inputs, need_attention=False, attention_grad=band is not None)
+        total = total + (F.cross_entropy(out.logits, target, reduction="none") * weight).sum()
         if band is not None:
             total = total + train.attention_weight * _attention_loss(out.attention, band)
     coarse_accuracy = float((weight * (out.logits.argmax(1) == target)).sum())
-    return total / sum(level_weights), coarse_accuracy
+    return total / len(example.inputs), coarse_accuracy
 
 
 def fit(*args, **kwargs) -> Segmenter:
@@ -229,8 +217,6 @@ def fit_and_time(
         raise ValueError("no training meshes")
     if train.depth == 0 and config.mode != "none":
         raise ValueError("depth 0 (a per-face classifier without attention) needs mode 'none': nothing would rank the collapses")
-    if train.coarse_context and (config.n_levels < 2 or train.depth == 0):
-        raise ValueError("coarse_context needs coarse levels (a mode other than 'none', cycles >= 1) and depth > 0")
     device = resolve_device(train.device)
     seed_everything(train.seed)
     groups = level_zero_features(train_set, config, progress=progress)
@@ -239,7 +225,7 @@ def fit_and_time(
         ModelConfig(
             in_features=len(mean), n_classes=len(label_names), width=train.width, depth=train.depth,
             heads=train.heads, patch_size=config.patch_size, dropout=train.dropout, embed_norm=train.embed_norm,
-            coarse_levels=config.n_levels - 1 if train.coarse_context else 0, detach_share=train.detach_share,
+            detach_share=train.detach_share,
             spectral_pairs=SPECTRUM_PAIRS if train.diffusion_blocks else 0, diffusion_blocks=train.diffusion_blocks,
         )
     ).to(device)

@@ -206,7 +206,7 @@ def test_agd_stays_within_each_connected_component():
 def test_smoothing_keeps_the_integral_and_lowers_the_spread():
     mesh = blob()
     blocks = features.compute_groups(mesh, ["gc", "smooth"], smooth_radii=(0.05, 0.3), **FAST)
-    area = mesh.normalized().face_areas
+    area = mesh.unit_area().face_areas
     raw, small, large = blocks["gc"][:, 0], blocks["smooth"][:, 2], blocks["smooth"][:, 3]  # gc_slog at r=0.05, 0.3
     for smoothed in (small, large):
         np.testing.assert_allclose((smoothed * area).sum(), (raw * area).sum(), rtol=1e-4)
@@ -225,7 +225,7 @@ def test_diffusion_by_multigrid_cg_matches_a_direct_solve(monkeypatch):
     from scipy.sparse.linalg import spsolve
 
     sphere = trimesh.creation.icosphere(subdivisions=3)
-    mesh = Mesh(sphere.vertices * [2.0, 1.0, 1.0], sphere.faces).normalized()
+    mesh = Mesh(sphere.vertices * [2.0, 1.0, 1.0], sphere.faces).unit_area()
     signals = np.random.default_rng(0).random((mesh.n_faces, 2))
     monkeypatch.setattr(diffusion, "DIRECT_SOLVE_MAX_VERTICES", 0)  # the iterative path, as on a large mesh
     got = diffusion.diffuse_on_faces(mesh, signals, [0.05, 0.3])

@@ -62,7 +62,7 @@ def test_concave_edge_has_negative_dihedral():
 
 
 def test_normalized_has_unit_area_and_centre():
-    m = Mesh(TETRA_V * 13.0 + 5, TETRA_F).normalized()
+    m = Mesh(TETRA_V * 13.0 + 5, TETRA_F).unit_area()
     assert m.face_areas.sum() == pytest.approx(1.0)
     assert np.allclose((m.face_centroids * m.face_areas[:, None]).sum(0), 0, atol=1e-12)
 

@@ -128,14 +128,10 @@ def test_context_reaches_other_tokens(problem):
 
 
 def test_head_on_faces_is_the_head_on_the_concatenation(problem):
-    """The context columns applied once per token give the head of [embedding, context of the face's token, coarse]."""
+    """The context columns applied once per token give the head of [embedding, context of the face's token]."""
     model, x, layout = problem
     patch = torch.as_tensor(layout.patch_of_face)
     embedded, context = torch.randn(len(x), 16), torch.randn(layout.n_patches, 16)
-    head = nn.Sequential(nn.Linear(16 * 3, 8), nn.GELU(), nn.Linear(8, 3))
-    coarse = torch.randn(len(x), 16)
-    expected = head(torch.cat([embedded, context[patch], coarse], dim=1))
-    torch.testing.assert_close(model._head_on_faces(head, embedded, context, patch, coarse), expected)
     plain = nn.Sequential(nn.Linear(16 * 2, 8), nn.GELU(), nn.Linear(8, 3))
     torch.testing.assert_close(model._head_on_faces(plain, embedded, context, patch),
                                plain(torch.cat([embedded, context[patch]], dim=1)))

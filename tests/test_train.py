@@ -198,22 +198,6 @@ def test_a_change_of_feature_code_changes_every_key(monkeypatch):
     assert base.key() != "b1e98aa45e21a4b6"
 
 
-def test_coarse_context_trains_and_segments_from_the_input_level(split):
-    from anseg.pipeline import segment
-
-    train_set, test_set = split
-    with pytest.raises(ValueError, match="coarse_context needs"):
-        fit(train_set, train_set[0].label_names, replace(SMALL, mode="none"), TrainConfig(coarse_context=True, epochs=1),
-            progress=False)
-    model = fit(train_set[:2], train_set[0].label_names, replace(SMALL, combine="finest"),
-                TrainConfig(coarse_context=True, epochs=2, width=16, depth=1), progress=False)
-    assert model.network.config.coarse_levels == SMALL.cycles and model.network.context_head is not None
-    result = segment(test_set[0].mesh, model)
-    assert result.labels.shape == (test_set[0].mesh.n_faces,)
-    assert np.allclose(result.probabilities.sum(axis=1), 1.0)
-    assert all(level.attention is not None for level in result.levels)
-
-
 def test_only_attention_makes_a_rebuild(split, monkeypatch):
     """A uniform hierarchy is built once; a nonuniform rebuild re-clusters the coarse levels, not the input level."""
     import anseg.pipeline as pipeline

@@ -1,4 +1,4 @@
-"""Large meshes: the unit-area mesh that global quantities are computed on, and the collapse that stands in for it.
+"""Large meshes: the collapse that stands in for them when global quantities are computed.
 
 Above :data:`LARGE_MESH_FACES` faces (scans, CAD; the largest benchmark mesh
 has 55,644) the smooth global quantities, the AGD, the HKS, the ``smooth``
@@ -18,13 +18,6 @@ from anseg.mesh import Mesh
 
 LARGE_MESH_FACES = 60_000
 PROXY_FACES = 50_000
-
-
-def unit_area(mesh: Mesh) -> Mesh:
-    """The mesh scaled to unit total area and centred, without unreferenced vertices (they make Laplacians singular)."""
-    normal = mesh.normalized()
-    used, faces = np.unique(normal.faces, return_inverse=True)
-    return normal if len(used) == normal.n_vertices else Mesh(normal.vertices[used], faces.reshape(-1, 3))
 
 
 def collapse_to_proxy(mesh: Mesh) -> tuple[Mesh, np.ndarray]:

@@ -109,10 +109,10 @@ def face_spectrum(mesh: Mesh, n_pairs: int = SPECTRUM_PAIRS, cache: bool = True)
     path = _cache_path(mesh, n_pairs) if cache else None
     if path is not None and (stored := read_checked_array(path, (mesh.n_faces + 1, n_pairs))) is not None:
         return Spectrum(stored[0].astype(np.float64), stored[1:])
-    surface, face_of = proxy.unit_area(mesh), None
+    surface, face_of = mesh.unit_area(), None
     if surface.n_faces > proxy.LARGE_MESH_FACES:
         coarse, face_of = proxy.collapse_to_proxy(surface)
-        surface = proxy.unit_area(coarse)
+        surface = coarse.unit_area()
     values, vectors = laplacian_eigenpairs(surface, n_pairs)
     per_face = vectors[surface.faces].mean(axis=1)
     if face_of is not None:

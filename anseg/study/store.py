@@ -34,7 +34,7 @@ REPO = Path(__file__).resolve().parents[2]
 SETTINGS_ADDED_LATER = {
     "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
                 "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz"},
-    "train": {"embed_norm": False, "schedule": "constant", "coarse_context": False, "detach_share": False,
+    "train": {"embed_norm": False, "schedule": "constant", "detach_share": False,
               "average_last": 0, "diffusion_blocks": 0},
 }
 # The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
