@@ -283,8 +283,9 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
     given; ``progress`` shows their bar on a large mesh). ``first_layout``:
     the input level's patch layout when it is known already (it depends on
     the features alone, so training's rebuilds reuse it instead of clustering
-    again).
+    again). Raises MeshError for a mesh that fails ``validate()``.
     """
+    mesh.validate()
     if groups is None:
         groups = features.compute_groups(mesh, config.groups, cache=True, progress=progress)
     levels = []
@@ -371,10 +372,9 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     ``ensemble``: more models trained on the same classes and features (other
     seeds); each builds its own hierarchy, and the class probabilities of all
     of them are averaged before the graph cut. The levels returned are
-    ``model``'s.
+    ``model``'s. Raises MeshError for a mesh that fails ``validate()``.
     """
     config = config or model.config
-    mesh.validate()
     for other in ensemble:
         if other.n_classes != model.n_classes or other.config.groups != model.config.groups:
             raise ValueError("an ensemble's models must share their classes and feature groups")
