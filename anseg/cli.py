@@ -33,8 +33,8 @@ SEGMENT_DESCRIPTION = (
     "Write a face-coloured PLY (triangles) and a label file: one 0-based label per line, line k for the mesh file's "
     "face k, in the file's order whatever it groups faces by (OBJ materials, objects, groups). A polygon of k sides is "
     "one line: it is segmented as k - 2 triangles, a fan from its first corner, and takes the label that covers most "
-    "of its area. A glTF/GLB scene is one shape, its meshes in the scene's node order; a scene that places one mesh "
-    "more than once is refused (export one placement).")
+    "of its area. A glTF/GLB scene is one shape, its meshes in the scene's node order; in a scene that places one mesh "
+    "more than once each placement is segmented on its own, and their lines follow one another in node order.")
 
 
 def _non_negative(text: str) -> float:
@@ -231,8 +231,7 @@ def _print_scores(scores: dict) -> None:
 
 
 def _segment(args) -> None:
-    from anseg import repair
-    from anseg.mesh_files import WRITABLE_SUFFIXES, load_mesh_with_faces
+    from anseg.mesh_files import WRITABLE_SUFFIXES, load_shapes
 
     if args.model_name is not None:
         if len(args.paths) != 1:
@@ -248,15 +247,14 @@ def _segment(args) -> None:
     if output.suffix.lower() not in WRITABLE_SUFFIXES:
         raise ValueError(f"{output}: cannot write {output.suffix!r} (the coloured mesh is one of {', '.join(WRITABLE_SUFFIXES)})")
     _check_outputs(output, label_path, args.html)
-    mesh, file_face = load_mesh_with_faces(args.mesh, validate=not args.repair)
-    input_mesh = mesh
-    face_map = None
-    if args.repair:
-        mesh, face_map = repair(mesh)
+    shapes = _repaired(load_shapes(args.mesh, validate=not args.repair), args.repair)
+    if args.html and len(shapes) > 1:
+        raise ValueError(f"{args.mesh}: --html draws one object, and this scene holds {len(shapes)} (one mesh placed "
+                         "more than once); leave out --html, or export one placement")
     model = _load_model(model_file)
 
     from anseg.cache import atomic_write_all
-    from anseg.mesh import labels_for_input_faces
+    from anseg.mesh import Mesh, labels_for_input_faces
     from anseg.mesh_files import labels_for_file_faces, save_mesh
     from anseg.pipeline import segment
     from anseg.viz import label_colors
@@ -266,21 +264,30 @@ def _segment(args) -> None:
         from dataclasses import replace
 
         config = replace(config, smooth_weight=args.smooth_weight)
-    result = segment(mesh, model, config, device=next(model.network.parameters()).device, progress=not args.quiet)
-    labels = result.labels
-    if face_map is not None:  # back to the input faces, dropped ones included
-        labels = labels_for_input_faces(result.labels, face_map, input_mesh)
-    labels = labels_for_file_faces(labels, file_face, input_mesh)  # one line per face of the file, polygons whole
-    writes = {output: lambda tmp: save_mesh(tmp, mesh, face_colors=label_colors(result.labels, model.n_classes)),
+    results, per_file_face = [], []
+    for input_mesh, file_face, mesh, face_map in shapes:  # each object on its own, in the file's order
+        result = segment(mesh, model, config, device=next(model.network.parameters()).device, progress=not args.quiet)
+        labels = result.labels
+        if face_map is not None:  # back to the input faces, dropped ones included
+            labels = labels_for_input_faces(result.labels, face_map, input_mesh)
+        results.append(result)
+        per_file_face.append(labels_for_file_faces(labels, file_face, input_mesh))  # one line per face, polygons whole
+    labels, segmented = np.concatenate(per_file_face), np.concatenate([r.labels for r in results])
+    meshes = [mesh for *_, mesh, _ in shapes]
+    offsets = np.cumsum([0, *(m.n_vertices for m in meshes[:-1])])
+    joined = Mesh(np.concatenate([m.vertices for m in meshes]), np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]))
+    writes = {output: lambda tmp: save_mesh(tmp, joined, face_colors=label_colors(segmented, model.n_classes)),
               label_path: lambda tmp: np.savetxt(tmp, labels, fmt="%d")}
     if args.html:
         from anseg.viewer import write_html
 
-        writes[args.html] = lambda tmp: write_html(result, model.label_names, tmp, title=args.mesh.name)
+        writes[args.html] = lambda tmp: write_html(results[0], model.label_names, tmp, title=args.mesh.name)
     atomic_write_all(writes)  # all the outputs or none, each complete, even when interrupted
-    counts = np.bincount(result.labels, minlength=model.n_classes)
-    triangles = f" ({mesh.n_faces} triangles)" if mesh.n_faces != len(labels) else ""
-    print(f"{len(labels)} faces{triangles} -> {output} and {label_path}" + (f" (view: {args.html})" if args.html else ""))
+    counts = np.bincount(segmented, minlength=model.n_classes)
+    triangles = f" ({joined.n_faces} triangles)" if joined.n_faces != len(labels) else ""
+    objects = f" in {len(shapes)} objects" if len(shapes) > 1 else ""
+    print(f"{len(labels)} faces{triangles}{objects} -> {output} and {label_path}"
+          + (f" (view: {args.html})" if args.html else ""))
     for name, count in zip(model.label_names, counts):
         print(f"  {name}: {count} faces")
 
@@ -301,18 +308,23 @@ def _evaluate(args) -> None:
         atomic_write(args.json, lambda tmp: tmp.write_text(json.dumps(scores, indent=1)))
 
 
+def _repaired(shapes, repair: bool) -> list[tuple]:
+    """(input mesh, file_face, mesh to segment, face_map or None) of each object, repaired with ``--repair``."""
+    from anseg import repair as repaired
+
+    return [(mesh, file_face, *(repaired(mesh) if repair else (mesh, None))) for mesh, file_face in shapes]
+
+
 def _features(args) -> None:
-    from anseg import load_mesh, repair
+    from anseg.mesh_files import load_shapes
 
     _check_outputs(args.output)
-    mesh = load_mesh(args.mesh, validate=not args.repair)
-    if args.repair:
-        mesh, _ = repair(mesh)
+    shapes = _repaired(load_shapes(args.mesh, validate=not args.repair), args.repair)
     from anseg import features
     from anseg.cache import atomic_write
 
     groups = [g.strip() for g in str(args.groups).split(",") if g.strip()]
-    x = features.compute(mesh, groups=groups, progress=not args.quiet)
+    x = np.concatenate([features.compute(mesh, groups=groups, progress=not args.quiet) for _, _, mesh, _ in shapes])
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as handle:  # np.save(path) would append ".npy" to a name without it

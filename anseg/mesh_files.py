@@ -48,10 +48,8 @@ def load_mesh(path: str | os.PathLike, validate: bool = True) -> Mesh:
     transform, in the scene's node order (depth first, as the file lists
     them), each mesh's primitives in order; points and lines are left out,
     and a scene without triangles is a MeshError. A scene that places one
-    mesh more than once (instances, or copies of one mesh) is a MeshError:
-    the copies would be segmented as one shape, and which copy a label
-    belongs to would be lost; export one placement, or join them into one
-    mesh if they are one shape.
+    mesh more than once (instances, or copies of one mesh) holds several
+    objects, and is a MeshError here: :func:`load_shapes` reads it.
 
     With ``validate`` (the default) the mesh is checked and a MeshError says
     what is wrong; pass ``validate=False`` and call :func:`repair` to fix
@@ -76,6 +74,24 @@ def load_mesh_with_faces(path: str | os.PathLike, validate: bool = True) -> tupl
     per file face with it. In a glTF/GLB scene a file face is a triangle
     of the scene, in node order.
     """
+    shapes = load_shapes(path, validate)
+    if len(shapes) > 1:
+        raise MeshError(f"{path}: the scene places one mesh more than once, so it holds {len(shapes)} objects; "
+                        "`anseg segment` and `anseg features` take each on its own (anseg.mesh_files.load_shapes)")
+    return shapes[0]
+
+
+def load_shapes(path: str | os.PathLike, validate: bool = True) -> list[tuple[Mesh, np.ndarray]]:
+    """The objects a file holds, each as :func:`load_mesh_with_faces` gives a mesh: (mesh, file_face).
+
+    Every file is one object, except a glTF/GLB scene that places one mesh
+    more than once (instances, or copies of one mesh): each placement (a
+    node, with every primitive of its mesh) is then an object of its own,
+    in node order, to be segmented on its own, since copies segmented as
+    one shape would lose which copy a label belongs to. An object's
+    ``file_face`` counts from its own first face; the objects' faces
+    follow one another in the file. Checks and errors as :func:`load_mesh`.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
     if path.is_dir():
@@ -89,7 +105,7 @@ def load_mesh_with_faces(path: str | os.PathLike, validate: bool = True) -> tupl
     declared = _check_declared_counts(path)
     unreadable = f"{path}: cannot read mesh: not a complete {suffix[1:].upper()} file (truncated or damaged?)"
     try:
-        vertices, corners, sides = _READERS[suffix](path)
+        vertices, corners, sides, placement = (*_READERS[suffix](path), None)[:4]  # a scene's reader adds its objects
     except MeshError as exc:  # ours: already about the file
         raise MeshError(f"{path}: {exc}") from None
     except Exception as exc:  # the readers raise many types on bad files
@@ -105,17 +121,26 @@ def load_mesh_with_faces(path: str | os.PathLike, validate: bool = True) -> tupl
         raise MeshError(f"{path}: holds only {' and '.join(short)} its header declares (truncated?)")
     if sides.min() < 3:
         raise MeshError(f"{path}: face {int(np.argmax(sides < 3))} has fewer than 3 corners")
-    faces, file_face = _fans(corners, sides)
-    in_range = faces.min() >= 0 and faces.max() < len(vertices)
-    if suffix in _PER_CORNER_SUFFIXES and in_range:  # bad indices are left for validate to report
-        vertices, faces = merge_identical_vertices(vertices, faces)
-    mesh = Mesh(vertices, faces)
-    if validate:
-        try:
-            mesh.validate()
-        except MeshError as exc:
-            raise MeshError(f"{path}: {exc}") from None
-    return mesh, file_face
+    all_faces, all_file_faces = _fans(corners, sides)
+    objects = [slice(None)] if placement is None else [placement == k for k in range(placement.max() + 1)]
+    shapes = []
+    for k, chosen in enumerate(objects):
+        faces, file_face, own_vertices = all_faces[chosen], all_file_faces[chosen], vertices
+        if placement is not None:  # the placement's own vertices, its faces counted from its first
+            used, faces = np.unique(faces, return_inverse=True)
+            own_vertices, faces, file_face = vertices[used], faces.reshape(-1, 3), file_face - file_face[0]
+        in_range = faces.min() >= 0 and faces.max() < len(own_vertices)
+        if suffix in _PER_CORNER_SUFFIXES and in_range:  # bad indices are left for validate to report
+            own_vertices, faces = merge_identical_vertices(own_vertices, faces)
+        mesh = Mesh(own_vertices, faces)
+        if validate:
+            try:
+                mesh.validate()
+            except MeshError as exc:
+                where = f"placement {k + 1} of {len(objects)}: " if len(objects) > 1 else ""
+                raise MeshError(f"{path}: {where}{exc}") from None
+        shapes.append((mesh, file_face))
+    return shapes
 
 
 def _fans(corners: np.ndarray, sides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -312,7 +337,11 @@ def _gltf_json(path: Path) -> dict:
 
 
 def _read_gltf(path: Path):
-    """The triangles of a glTF/GLB scene in its node order, each mesh moved by its node's transform.
+    """The triangles of a glTF/GLB scene in its node order, each mesh moved by its node's transform, and the shapes.
+
+    The shapes: None where every mesh is placed once (the scene is one
+    shape), else each triangle's placement (0, 1, ... in node order): a
+    mesh placed twice is two objects, each segmented on its own.
 
     trimesh reads the buffers, primitives and transforms; its scene graph
     lists the nodes in another order (the last root first), so the order
@@ -341,30 +370,30 @@ def _read_gltf(path: Path):
             stack += reversed(nodes[i].get("children", []))
     # a node whose mesh has several primitives holds them in child frames, one per primitive, in the order of scene.geometry
     rank = {name: k for k, name in enumerate(scene.geometry)}
-    placed = []
-    for i in order:
+    placed = []  # (trimesh's frame, the node's rank in scene order)
+    for rank_of_node, i in enumerate(order):
         children = [f for f in scene.graph.transforms.children.get(frame[i], []) if f not in names]
         holders = [frame[i]] if frame[i] in scene.graph.nodes_geometry else children
-        placed += sorted((f for f in holders if f in scene.graph.nodes_geometry), key=lambda f: rank[scene.graph[f][1]])
-    if sorted(placed) != sorted(scene.graph.nodes_geometry):
+        held = sorted((f for f in holders if f in scene.graph.nodes_geometry), key=lambda f: rank[scene.graph[f][1]])
+        placed += [(f, rank_of_node) for f in held]
+    if sorted(f for f, _ in placed) != sorted(scene.graph.nodes_geometry):
         raise MeshError("cannot tell the scene's node order")
-    vertices, faces, seen = [], [], {}
-    for node in placed:
+    vertices, faces, node_of_face, seen, repeated = [], [], [], set(), False
+    for node, rank_of_node in placed:
         transform, name = scene.graph[node]
         geometry = scene.geometry[name]
         if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
             continue  # points and lines
         key = (geometry.vertices.tobytes(), geometry.faces.tobytes())
-        if key in seen:
-            raise MeshError(f"the scene places one mesh more than once (nodes {seen[key]!r} and {node!r}); anseg segments "
-                            f"one shape: export one placement, or join the copies into one mesh if they are one shape")
-        seen[key] = node
+        repeated, _ = repeated or key in seen, seen.add(key)
         faces.append(np.asarray(geometry.faces, dtype=np.int64) + sum(len(v) for v in vertices))
         vertices.append(trimesh.transform_points(np.asarray(geometry.vertices, dtype=np.float64), transform))
+        node_of_face.append(np.full(len(geometry.faces), rank_of_node))
     if not faces:
-        return np.empty((0, 3)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64)
+        return np.empty((0, 3)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), None
     faces = np.concatenate(faces)
-    return np.concatenate(vertices), faces.ravel(), np.full(len(faces), 3, dtype=np.int64)
+    placement = np.unique(np.concatenate(node_of_face), return_inverse=True)[1] if repeated else None
+    return np.concatenate(vertices), faces.ravel(), np.full(len(faces), 3, dtype=np.int64), placement
 
 
 _READERS = {".obj": _read_obj, ".off": _read_off, ".ply": _read_ply, ".stl": _read_stl, ".glb": _read_gltf, ".gltf": _read_gltf}

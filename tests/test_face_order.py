@@ -138,13 +138,29 @@ def test_a_glb_scene_is_read_in_its_node_order(tmp_path):
     assert np.allclose(mesh.vertices[mesh.faces], triangles, atol=1e-6)
 
 
-def test_a_glb_scene_placing_one_mesh_twice_is_refused(tmp_path, capsys):
-    path, _ = scene_file(tmp_path, third="tetra")
+def test_a_glb_scene_placing_one_mesh_twice_is_segmented_one_placement_at_a_time(tmp_path, monkeypatch, capsys):
+    path, triangles = scene_file(tmp_path, third="tetra")
     with pytest.raises(MeshError, match="places one mesh more than once"):
         load_mesh(path)
-    assert main(["segment", "--model", "psb/Teddy", str(path)]) == 2
-    error = capsys.readouterr().err
-    assert error.count("\n") == 1 and "export one placement" in error, error
+    from anseg.mesh_files import load_shapes
+
+    shapes = load_shapes(path)
+    assert [mesh.n_faces for mesh, _ in shapes] == [12, 4, 4]
+    assert np.allclose(np.concatenate([m.vertices[m.faces] for m, _ in shapes]), triangles, atol=1e-6)
+    stub_model(monkeypatch)
+    import anseg.pipeline
+
+    seen = []
+    monkeypatch.setattr(anseg.pipeline, "segment", lambda mesh, *a, **k: seen.append(mesh.n_faces) or SimpleNamespace(
+        labels=direction(mesh.face_normals)))
+    assert main(["segment", "--model", "psb/Teddy", str(path), "-o", str(tmp_path / "out.ply")]) == 0, capsys.readouterr().err
+    assert seen == [12, 4, 4]  # each placement on its own
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    assert np.loadtxt(tmp_path / "out.txt", dtype=int).tolist() == direction(normals).tolist()
+    assert main(["segment", "--model", "psb/Teddy", str(path), "--html", str(tmp_path / "view.html")]) == 2
+    assert "--html draws one object" in capsys.readouterr().err
+    assert main(["features", str(path), "-o", str(tmp_path / "x.npy"), "--groups", "edge"]) == 0, capsys.readouterr().err
+    assert np.load(tmp_path / "x.npy").shape[0] == 20
 
 
 @pytest.mark.parametrize("suffix", [".off", ".obj", ".ply"])
