@@ -33,8 +33,9 @@ from anseg.mesh import Mesh
 DEFAULT_K = 16
 DEFAULT_PATCH_SIZE = 32
 CURVES = ("hilbert", "morton")
-# the frame the ordering curve runs in: the coordinates as given, or the surface's own principal axes
-FRAMES = ("xyz", "principal")
+# the frame the ordering curve runs in: the coordinates as given, the surface's own principal axes, or the coordinates
+# turned by a rotation drawn from the layout's seed
+FRAMES = ("xyz", "principal", "random")
 # 16 bits per axis: 65536 cells along the longest side, far finer than any mesh we segment
 CURVE_BITS = 16
 
@@ -292,6 +293,11 @@ def layout(
     file's face order: the curve runs in :func:`principal_frame`, and K-means
     sees the faces in their order along that curve (its seeding follows the
     order of the rows), the labels then put back in the mesh's order.
+    ``frame="random"`` runs the curve in the coordinates turned by a rotation
+    drawn from ``seed`` (:func:`random_frame`), K-means as for ``principal``:
+    each seed gives another token order of the same mesh, which is what a
+    training that varies its layouts, or a test-time average over layouts,
+    needs.
     """
     if len(features) != mesh.n_faces:
         raise ValueError(f"features must have one row per face ({mesh.n_faces}), got {len(features)}")
@@ -300,7 +306,10 @@ def layout(
     if frame == "xyz":
         labels = cluster_faces(features, k=k, seed=seed)
         return patches(sequence(mesh, labels, curve=curve), labels, patch_size)
-    centroids = principal_frame(mesh.face_centroids, mesh.face_areas)
+    if frame == "principal":
+        centroids = principal_frame(mesh.face_centroids, mesh.face_areas)
+    else:
+        centroids = random_frame(mesh.face_centroids, seed)
     canonical = np.lexsort((np.arange(mesh.n_faces), _curve_position(centroids, curve)))
     labels = np.empty(mesh.n_faces, dtype=np.int64)
     labels[canonical] = cluster_faces(np.asarray(features)[canonical], k=k, seed=seed)
@@ -322,6 +331,13 @@ def principal_frame(centroids, areas) -> np.ndarray:
     _, axes = np.linalg.eigh((centred * weights[:, None]).T @ centred)
     coordinates = centred @ axes[:, ::-1]
     return coordinates * np.where(weights @ coordinates**3 < 0, -1.0, 1.0)
+
+
+def random_frame(centroids, seed: int) -> np.ndarray:
+    """Face centroids (F, 3) turned by a rotation drawn uniformly from ``seed`` (scipy's ``Rotation.random``)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.random(random_state=seed).apply(np.asarray(centroids, dtype=np.float64))
 
 
 def _curve_position(centroids: np.ndarray, curve: str) -> np.ndarray:

@@ -67,8 +67,9 @@ class SegmentConfig:
     hierarchy), and averages their class probabilities before the graph cut:
     a test-time ensemble of one trained model, at a pass's cost each.
     ``layout_frame`` is the frame of the token order (:func:`anseg.cluster.layout`):
-    the coordinates as given, or the surface's principal axes, which do not
-    depend on the pose or on the file's face order.
+    the coordinates as given, the surface's principal axes, which do not
+    depend on the pose or on the file's face order, or a rotation drawn from
+    ``seed`` (each pass of ``passes`` then orders the tokens in another frame).
     """
 
     cycles: int = 4

@@ -9,7 +9,8 @@ Adam, learning rate 1e-3, initial weights N(0, 0.001) (the paper).
 The collapse is not differentiable, so the hierarchy is rebuilt from the current attention
 every ``recollapse_every`` epochs and kept in between: rebuilding (K-means and coarse features
 at every level) costs more than the gradient steps, and the attention moves slowly. The input
-level's layout and a hierarchy that attention does not drive never change, so they are built once.
+level's layout and a hierarchy that attention does not drive never change, so they are built once,
+unless ``new_layouts`` asks for other tokens at every rebuild.
 
 The attention gets a training signal of its own (``attention_weight``; 0 gives the paper's
 reading, attention trained through the class loss alone, which leaves it nearly flat, so the
@@ -30,7 +31,7 @@ import os
 import random
 import time
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +54,7 @@ from anseg.pipeline import (
 )
 
 SCHEDULES = ("constant", "cosine")
+LAYOUT_SEED_STEP = 7919  # rebuild r of a training with new_layouts lays out with seed + r * this (a pass of a test uses 1000)
 
 
 @dataclass
@@ -71,7 +73,12 @@ class TrainConfig:
     of them, so that a short run (a smoke test, the synthetic notebooks) need
     not change the setting. ``diffusion_blocks`` gives the network learned
     heat diffusion through the mesh's Laplacian eigenbasis
-    (:class:`~anseg.model.ModelConfig`; off by default).
+    (:class:`~anseg.model.ModelConfig`; off by default). ``new_layouts``
+    rebuilds every hierarchy, the input level's layout included, every
+    ``recollapse_every`` epochs with another layout seed (other K-means
+    starts, and with ``layout_frame="random"`` another frame for the token
+    order), so that the network learns labels that do not hang on one token
+    order (off by default: the layout is built once).
     """
 
     epochs: int = 60
@@ -88,6 +95,7 @@ class TrainConfig:
     attention_weight: float = 1.0
     boundary_rings: int = 2
     diffusion_blocks: int = 0
+    new_layouts: bool = False
     seed: int = 0
     device: str = "auto"
 
@@ -146,11 +154,12 @@ class _Example:
     targets: list[torch.Tensor]
     weights: list[torch.Tensor]
     near_boundary: list[torch.Tensor | None]  # attention targets of the levels that get collapsed
-    first_layout: PatchLayout  # the input level's, the same at every rebuild
+    first_layout: PatchLayout  # the input level's, the same at every rebuild unless new_layouts
 
 
-def _examples(model: Segmenter, mesh, labels, groups, train: TrainConfig, device, first_layout=None) -> _Example:
-    levels = build_levels(mesh, model, model.config, groups, device, first_layout=first_layout)
+def _examples(model: Segmenter, config: SegmentConfig, mesh, labels, groups, train: TrainConfig, device,
+              first_layout=None) -> _Example:
+    levels = build_levels(mesh, model, config, groups, device, first_layout=first_layout)
     supervise = model.config.mode == "nonuniform" and train.attention_weight > 0
     example = _Example([], [], [], [], levels[0].layout)
     for index, (level, target) in enumerate(zip(levels, levels.labels_on_every_level(labels, model.n_classes))):
@@ -240,12 +249,16 @@ def fit_and_time(
     bar = tqdm(range(start, train.epochs), desc="train", disable=not progress, initial=start, total=train.epochs)
     examples: list[_Example] = []
     for epoch in bar:
-        # only attention changes a hierarchy: a uniform or no collapse is built once
-        if not examples or (config.mode == "nonuniform" and epoch % train.recollapse_every == 0):
+        # only attention and new layouts change a hierarchy: a uniform or no collapse is otherwise built once
+        rebuilt = config.mode == "nonuniform" or train.new_layouts
+        if not examples or (rebuilt and epoch % train.recollapse_every == 0):
             # a run resumed between rebuilds rebuilds with the weights of the last rebuild, as the run it continues did
             with state.weights_of_last_rebuild(epoch % train.recollapse_every == 0):
-                examples = [_examples(model, m.mesh, m.labels, g, train, device, e.first_layout if e else None)
-                            for m, g, e in zip(train_set, groups, examples or [None] * len(train_set))]
+                rebuild = epoch // train.recollapse_every if train.new_layouts else 0
+                layout_config = replace(config, seed=config.seed + rebuild * LAYOUT_SEED_STEP)
+                kept = examples if examples and not train.new_layouts else [None] * len(train_set)
+                examples = [_examples(model, layout_config, m.mesh, m.labels, g, train, device, e.first_layout if e else None)
+                            for m, g, e in zip(train_set, groups, kept)]
         network.train()
         losses, accuracies = [], []
         for step, i in enumerate(order.permutation(len(examples)), start=epoch * len(examples)):

@@ -46,7 +46,8 @@ def measure(train_set, overrides: str, epochs: int) -> tuple[float, float]:
     groups = train.level_zero_features(train_set, config, progress=False)
     model = train.fit(train_set, train_set[0].label_names, config, replace(settings, epochs=1, average_last=0), progress=False)
     model.network.train()
-    examples = [train._examples(model, m.mesh, m.labels, g, settings, torch.device("cpu")) for m, g in zip(train_set, groups)]
+    examples = [train._examples(model, model.config, m.mesh, m.labels, g, settings, torch.device("cpu"))
+                for m, g in zip(train_set, groups)]
     optimizer = torch.optim.Adam(model.network.parameters(), lr=settings.lr)
 
     def epoch() -> None:

@@ -272,3 +272,11 @@ def test_the_principal_frame_layout_does_not_depend_on_the_pose_or_the_face_orde
     if transform != "scale and shift":  # the coordinates' own frame moves with the mesh
         assert not same_layout(layout(mesh, features, k=6, patch_size=16),
                                layout(moved, features[order], k=6, patch_size=16), np.argsort(order))
+
+
+def test_a_random_frame_layout_is_fixed_by_its_seed_and_moves_with_it():
+    mesh, features = bumpy_blob()
+    first = layout(mesh, features, k=6, patch_size=16, seed=1, frame="random")
+    assert same_layout(first, layout(mesh, features, k=6, patch_size=16, seed=1, frame="random"), np.arange(mesh.n_faces))
+    assert not same_layout(first, layout(mesh, features, k=6, patch_size=16, seed=2, frame="random"),
+                           np.arange(mesh.n_faces))

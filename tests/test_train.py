@@ -218,6 +218,22 @@ def test_only_attention_makes_a_rebuild(split, monkeypatch):
     assert sum(n in input_sizes for n in clustered) == 2  # the input levels were clustered at the first build only
 
 
+def test_new_layouts_lay_out_every_level_again_at_every_rebuild_with_another_seed(split, monkeypatch):
+    import anseg.pipeline as pipeline
+
+    train_set, _ = split
+    seeds = []
+    real_layout = pipeline.layout
+    monkeypatch.setattr(pipeline, "layout", lambda mesh, *a, **k: seeds.append((mesh.n_faces, k["seed"], k["frame"]))
+                        or real_layout(mesh, *a, **k))
+    config = replace(SMALL, mode="uniform", layout_frame="random")
+    fit(train_set[:1], train_set[0].label_names, config, TrainConfig(epochs=3, recollapse_every=1, width=16, depth=1,
+                                                                     new_layouts=True), progress=False)
+    on_input = [seed for n, seed, frame in seeds if n == train_set[0].mesh.n_faces]
+    assert len(on_input) == 3 and len(set(on_input)) == 3  # a uniform hierarchy too, built again with a new seed each time
+    assert {frame for *_, frame in seeds} == {"random"}
+
+
 def test_spatial_context_trains_and_carries_the_eigenbasis_to_every_level(split):
     from anseg.pipeline import segment
 

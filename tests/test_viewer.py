@@ -148,3 +148,94 @@ def test_the_live_view_follows_its_slider_and_colouring(page):
     choice.value = "labels"
     assert not np.array_equal(shown().cell_data["colours"], confidence)
     plotter.close()
+
+
+def _synthetic(subdivisions: int = 3, n_levels: int = 2, attention=True, probabilities=True, stray=False):
+    """A Segmentation built by hand, no model: an icosphere labelled by the sign of x, with uniform collapses.
+
+    ``attention``: True for every level, or the levels that get one; ``stray``: a far vertex that no face uses.
+    """
+    import trimesh
+
+    from anseg import collapse
+    from anseg.hierarchy import Hierarchy, Level
+    from anseg.mesh import Mesh
+    from anseg.pipeline import Segmentation
+
+    sphere = trimesh.creation.icosphere(subdivisions)
+    vertices = np.vstack([sphere.vertices, [[1e6, -1e6, 1e6]]]) if stray else sphere.vertices
+    mesh = Mesh(vertices, sphere.faces)
+    rng = np.random.default_rng(0)
+    levels, current = [], mesh
+    for index in range(n_levels):
+        has_attention = attention is True or index in attention
+        levels.append(Level(current, {}, None, attention=rng.uniform(0.1, 1.0, current.n_faces) if has_attention else None))
+        if index < n_levels - 1:
+            current, levels[-1].record = collapse.downsample(current, None, ratio=0.5, mode="uniform")
+    labels = (mesh.face_centroids[:, 0] > 0).astype(np.int64)
+    probs = np.column_stack([1 - labels, labels]) * 0.6 + 0.2 if probabilities else None
+    return Segmentation(labels=labels, probabilities=probs, unsmoothed_labels=labels, levels=Hierarchy(levels))
+
+
+def _legend_notes(path) -> list[str]:
+    import html
+    import json
+
+    legend = json.loads(re.search(r"box\.innerHTML = (\".*?\"); document", path.read_text()).group(1).replace("<\\/", "</"))
+    return [html.unescape(note) for note in re.findall(r'<p class="anseg-note"[^>]*>(.*?)</p>', legend)]
+
+
+def _payload(path) -> int:
+    """Characters of the scene vtk.js draws (base64 of its zipped arrays): the part of the page that grows with faces."""
+    return len(re.search(r'const base64Str = "([^"]*)"', path.read_text()).group(1))
+
+
+def test_a_large_mesh_is_drawn_decimated_and_the_legend_says_so(tmp_path, monkeypatch):
+    result = _synthetic(subdivisions=4)  # 5120 faces; the panels hold 3 x 5120 + 2 x 2560
+    full = viewer.write_html(result, ["a", "b"], tmp_path / "full.html")
+    assert _legend_notes(full) == []
+    monkeypatch.setattr(viewer, "DISPLAY_MAX_FACES", 2000)
+    light = viewer.write_html(result, ["a", "b"], tmp_path / "light.html")
+    [note] = _legend_notes(light)
+    drawn, held = (int(n.replace(",", "")) for n in re.search(r"decimated to ([\d,]+) faces, of the ([\d,]+)", note).groups())
+    assert drawn <= 2000 and held == 3 * 5120 + 2 * 2560
+    assert "5,120 with 400" in note  # the input mesh, as drawn on each of its three panels
+    assert _payload(light) < _payload(full) / 4  # a tenth of the faces drawn, and what every scene holds
+    assert len(result.labels) == result.levels[0].mesh.n_faces  # the data keep one label per input face
+
+    # each drawn face has the colour of the input faces it covers: the label of its side of x = 0
+    shown, _ = viewer._for_display(viewer.panels(result, 2), 2000)
+    row, column, mesh, rgb = shown[0]
+    assert (row, column, mesh.n_faces) == (0, 0, 400)
+    expected = palette(2)[(mesh.face_centroids[:, 0] > 0).astype(int)]
+    assert (rgb == expected).all(axis=1).mean() > 0.95
+
+
+def test_below_the_threshold_the_page_draws_every_face():
+    result = _synthetic(subdivisions=3)
+    held = viewer.panels(result, 2)
+    total = sum(mesh.n_faces for _, _, mesh, _ in held)
+    shown, note = viewer._for_display(held, total)
+    assert note is None
+    assert [(r, c, m, rgb) for r, c, m, rgb in shown] == [(r, c, m, rgb) for r, c, m, rgb in held]  # the same objects
+    # above it, the smaller panels stay whole and the larger share the rest evenly
+    assert viewer._face_cap([10, 100, 100], 110) == 50 and viewer._face_cap([10, 100], 110) is None
+
+
+def test_a_panel_left_out_is_named_in_the_legend(tmp_path):
+    """A uniform hierarchy segmented with combine="coarsest" holds attention on its last level only."""
+    result = _synthetic(n_levels=3, attention=[2], probabilities=False)
+    assert len(viewer.panels(result, 2)) == 3 + 1  # the labels of each level, the last level's attention
+    notes = _legend_notes(viewer.write_html(result, ["a", "b"], tmp_path / "view.html"))
+    assert notes == ["No attention panel for levels 0, 1: the segmentation holds no attention there "
+                     "(anseg.pipeline.fill_attention computes it).",
+                     "No confidence panel: the segmentation holds no class probabilities."]
+    assert viewer.missing_panels(_synthetic()) == []
+
+
+def test_a_vertex_no_face_uses_does_not_shrink_the_panels():
+    """The page scales each panel to its mesh's bounding box: a stray far vertex would make the shape a dot."""
+    result = _synthetic(stray=True)
+    shown, _ = viewer._for_display(viewer.panels(result, 2), viewer.DISPLAY_MAX_FACES)
+    for _, _, mesh, rgb in shown:
+        assert np.abs(mesh.vertices).max() < 1.01 and len(rgb) == mesh.n_faces
