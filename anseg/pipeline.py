@@ -41,6 +41,7 @@ from anseg.graphcut import smooth as graph_cut
 from anseg.hierarchy import Hierarchy, Level, pool
 from anseg.mesh import Mesh
 from anseg.model import AttentionSegmenter, Output, SpectralInput, model_config
+from anseg.refine import Refiner, anchor_features
 
 # how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
@@ -127,6 +128,7 @@ class Segmenter:
     feature_mean: np.ndarray
     feature_std: np.ndarray
     label_names: list[str]
+    refiner: Refiner | None = None  # the second stage (anseg.refine), where the model was trained with one
 
     @property
     def n_classes(self) -> int:
@@ -165,6 +167,7 @@ class Segmenter:
             "feature_mean": torch.as_tensor(self.feature_mean),
             "feature_std": torch.as_tensor(self.feature_std),
             "label_names": list(self.label_names),
+            **({"refiner": self.refiner.to_payload()} if self.refiner is not None else {}),
         }
         buffer = io.BytesIO()
         torch.save(payload, buffer)
@@ -198,6 +201,7 @@ class Segmenter:
             feature_mean=payload["feature_mean"].numpy(),
             feature_std=payload["feature_std"].numpy(),
             label_names=list(payload["label_names"]),
+            refiner=Refiner.from_payload(payload["refiner"]).to(device) if "refiner" in payload else None,
         )
 
 
@@ -218,6 +222,11 @@ def level_features(level: Level, index: int, n_levels: int, local_scale: str = "
     then the level column."""
     column = np.full((level.mesh.n_faces, 1), index / max(1, n_levels - 1))
     return np.concatenate([*input_groups(level.groups, local_scale).values(), column], axis=1).astype(np.float32)
+
+
+def face_features(groups: dict[str, np.ndarray], config: SegmentConfig) -> np.ndarray:
+    """The input level's feature groups side by side, as the network reads them (what the second stage reads too)."""
+    return np.concatenate(list(input_groups(groups, config.local_scale).values()), axis=1)
 
 
 def input_groups(groups: dict[str, np.ndarray], local_scale: str) -> dict[str, np.ndarray]:
@@ -393,6 +402,8 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
             hierarchy = levels if member is model and index == 0 else build_levels(mesh, member, again, groups, device)
             probs = probs + class_probabilities(member, hierarchy, again, device)
     probs = probs / (config.passes * (1 + len(ensemble)))
+    if model.refiner is not None:  # the second stage reads where each face sits relative to the parts found
+        probs = model.refiner.probabilities(face_features(groups, config), anchor_features(mesh, probs))
     raw = probs.argmax(axis=1)
     labels = (graph_cut(mesh, probs, weight=config.smooth_weight, concave_discount=config.concave_discount)
               if config.smooth_weight > 0 else raw)

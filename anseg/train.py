@@ -48,10 +48,12 @@ from anseg.pipeline import (
     SegmentConfig,
     Segmenter,
     build_levels,
+    face_features,
     input_groups,
     model_inputs,
     segment,
 )
+from anseg.refine import Refiner, anchor_features, fit_refiner
 
 SCHEDULES = ("constant", "cosine")
 LAYOUT_SEED_STEP = 7919  # rebuild r of a training with new_layouts lays out with seed + r * this (a pass of a test uses 1000)
@@ -73,7 +75,9 @@ class TrainConfig:
     of them, so that a short run (a smoke test, the synthetic notebooks) need
     not change the setting. ``diffusion_blocks`` gives the network learned
     heat diffusion through the mesh's Laplacian eigenbasis
-    (:class:`~anseg.model.ModelConfig`; off by default). ``new_layouts``
+    (:class:`~anseg.model.ModelConfig`; off by default). ``second_stage_folds``
+    > 0 adds the second stage of :mod:`anseg.refine`, cross-fitted over that
+    many folds of the training meshes (off by default). ``new_layouts``
     rebuilds every hierarchy, the input level's layout included, every
     ``recollapse_every`` epochs with another layout seed (other K-means
     starts, and with ``layout_frame="random"`` another frame for the token
@@ -96,12 +100,15 @@ class TrainConfig:
     boundary_rings: int = 2
     diffusion_blocks: int = 0
     new_layouts: bool = False
+    second_stage_folds: int = 0
     seed: int = 0
     device: str = "auto"
 
     def __post_init__(self):
         if self.epochs < 1 or self.recollapse_every < 1:
             raise ValueError("epochs and recollapse_every must be >= 1")
+        if self.second_stage_folds == 1 or self.second_stage_folds < 0:
+            raise ValueError(f"second_stage_folds must be 0 (no second stage) or at least 2, got {self.second_stage_folds}")
         if self.average_last < 0:
             raise ValueError(f"average_last must be >= 0, got {self.average_last}")
         if self.schedule not in SCHEDULES:
@@ -278,7 +285,29 @@ def fit_and_time(
     if train.average_last:
         network.load_state_dict(state.averaged())
     network.eval()
+    if train.second_stage_folds:
+        model.refiner = _second_stage(train_set, groups, label_names, config, train)
     return (model, *state.seconds_spent())
+
+
+def _second_stage(train_set, groups, label_names, config: SegmentConfig, train: TrainConfig) -> Refiner:
+    """The second stage (:mod:`anseg.refine`), cross-fitted: the training meshes in ``second_stage_folds`` folds, each
+    labelled by a first stage trained as this one on the other folds, and the refiner trained on those labels.
+
+    The first stage has seen its own training meshes, so its probabilities
+    there are better than on a new mesh; a refiner trained on them would
+    trust them more than they deserve.
+    """
+    folds, first_stage, examples = train.second_stage_folds, replace(train, second_stage_folds=0), []
+    for fold in range(folds):
+        rest = [m for i, m in enumerate(train_set) if i % folds != fold]
+        fold_model = fit(rest, label_names, config, first_stage, progress=False)
+        for i in range(fold, len(train_set), folds):
+            item = train_set[i]
+            probs = segment(item.mesh, fold_model, config, groups[i]).probabilities
+            examples.append((face_features(groups[i], config), anchor_features(item.mesh, probs), item.labels,
+                             item.mesh.face_areas))
+    return fit_refiner(examples, len(label_names), seed=train.seed)
 
 
 class _TrainingState:
