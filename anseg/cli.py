@@ -247,7 +247,7 @@ def _segment(args) -> None:
     if output.suffix.lower() not in WRITABLE_SUFFIXES:
         raise ValueError(f"{output}: cannot write {output.suffix!r} (the coloured mesh is one of {', '.join(WRITABLE_SUFFIXES)})")
     _check_outputs(output, label_path, args.html)
-    shapes = _repaired(load_shapes(args.mesh, validate=not args.repair), args.repair)
+    shapes = _repaired(args.mesh, load_shapes(args.mesh, validate=not args.repair), args.repair)
     if args.html and len(shapes) > 1:
         raise ValueError(f"{args.mesh}: --html draws one object, and this scene holds {len(shapes)} (one mesh placed "
                          "more than once); leave out --html, or export one placement")
@@ -279,8 +279,10 @@ def _segment(args) -> None:
     writes = {output: lambda tmp: save_mesh(tmp, joined, face_colors=label_colors(segmented, model.n_classes)),
               label_path: lambda tmp: np.savetxt(tmp, labels, fmt="%d")}
     if args.html:
+        from anseg.pipeline import fill_attention
         from anseg.viewer import write_html
 
+        fill_attention(model, results[0].levels)  # every level's attention panel, not only those that drove a collapse
         writes[args.html] = lambda tmp: write_html(results[0], model.label_names, tmp, title=args.mesh.name)
     atomic_write_all(writes)  # all the outputs or none, each complete, even when interrupted
     counts = np.bincount(segmented, minlength=model.n_classes)
@@ -308,18 +310,23 @@ def _evaluate(args) -> None:
         atomic_write(args.json, lambda tmp: tmp.write_text(json.dumps(scores, indent=1)))
 
 
-def _repaired(shapes, repair: bool) -> list[tuple]:
-    """(input mesh, file_face, mesh to segment, face_map or None) of each object, repaired with ``--repair``."""
+def _repaired(path: Path, shapes, repair: bool) -> list[tuple]:
+    """(input mesh, file_face, mesh to segment, face_map or None) of each object, repaired with ``--repair``; a mesh
+    that cannot be repaired is a MeshError that names the file."""
+    from anseg import MeshError
     from anseg import repair as repaired
 
-    return [(mesh, file_face, *(repaired(mesh) if repair else (mesh, None))) for mesh, file_face in shapes]
+    try:
+        return [(mesh, file_face, *(repaired(mesh) if repair else (mesh, None))) for mesh, file_face in shapes]
+    except MeshError as exc:
+        raise MeshError(f"{path}: {exc}") from None
 
 
 def _features(args) -> None:
     from anseg.mesh_files import load_shapes
 
     _check_outputs(args.output)
-    shapes = _repaired(load_shapes(args.mesh, validate=not args.repair), args.repair)
+    shapes = _repaired(args.mesh, load_shapes(args.mesh, validate=not args.repair), args.repair)
     from anseg import features
     from anseg.cache import atomic_write
 

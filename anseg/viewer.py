@@ -67,9 +67,10 @@ def panels(result, n_classes: int) -> list[tuple[int, int, Mesh, np.ndarray]]:
 def missing_panels(result) -> list[str]:
     """One line for each kind of panel the key promises that :func:`panels` cannot draw, and why.
 
-    Attention exists only where the segmentation computed it: a uniform or
-    random collapse needs none, and ``combine="coarsest"`` or ``"finest"``
-    asks the network about one level only. The viewer has no model to compute
+    Attention exists only where the segmentation computed it: on the levels
+    a nonuniform collapse started from and on those whose class probabilities
+    it combined (``SegmentConfig.combine``); a uniform hierarchy combined at
+    its coarsest level has it there alone. The viewer has no model to compute
     it with, so it says which levels lack it instead of leaving gaps in the row.
     """
     notes = []
@@ -149,14 +150,16 @@ def write_html(result, label_names, path: str | os.PathLike, title: str = "anseg
     """Write the page for ``result`` (what :func:`anseg.pipeline.segment` returns) to ``path``, atomically.
 
     The page draws at most :data:`DISPLAY_MAX_FACES` faces, all panels
-    together, because every face drawn is written into the file, while a
-    panel, a few hundred pixels across on a screen, shows a shape and the
-    outlines of its segments as well with some thousands of faces as with
-    more. Above that, the largest panels are decimated for display (see
-    :func:`_for_display`) and the legend says so and to how many faces;
-    ``result``, and every label written from it, stays one per input face.
-    Panels that :func:`panels` cannot draw are named in the legend
-    (:func:`missing_panels`).
+    together: every face drawn is written into the file, while a panel, a
+    fraction of a browser window, shows a shape and the outlines of its
+    segments as well with some thousands of faces as with more, and that
+    budget leaves each of the eleven panels of a five-level hierarchy that
+    many. The budget is per page, not per panel, so that the file's size is
+    bounded whatever the number of levels. Above it, the largest panels are
+    decimated for display (:func:`_for_display`) and the legend says so and
+    to how many faces; ``result``, and every label written from it, stays
+    one per input face. Panels that :func:`panels` cannot draw are named in
+    the legend (:func:`missing_panels`).
     """
     pyvista = _pyvista()
     shown, decimation = _for_display(panels(result, len(label_names)), DISPLAY_MAX_FACES)

@@ -70,7 +70,9 @@ def stub_model(monkeypatch, n_classes=3):
     model = SimpleNamespace(config=None, n_classes=n_classes, label_names=[f"part{i}" for i in range(n_classes)],
                             network=SimpleNamespace(parameters=lambda: iter([SimpleNamespace(device="cpu")])))
     monkeypatch.setattr(cli, "_load_model", lambda path: model)
-    monkeypatch.setattr(anseg.pipeline, "segment", lambda mesh, *a, **k: SimpleNamespace(labels=np.arange(mesh.n_faces) % 3))
+    monkeypatch.setattr(anseg.pipeline, "segment",
+                        lambda mesh, *a, **k: SimpleNamespace(labels=np.arange(mesh.n_faces) % 3, levels=None))
+    monkeypatch.setattr(anseg.pipeline, "fill_attention", lambda model, levels, device="cpu": levels)
     return model
 
 
