@@ -39,6 +39,7 @@ import torch
 import torch.nn.functional as F
 
 from anseg import collapse, features
+from anseg.augment import augmented
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout
 from anseg.geometry.spectral import SPECTRUM_PAIRS
@@ -77,7 +78,9 @@ class TrainConfig:
     heat diffusion through the mesh's Laplacian eigenbasis
     (:class:`~anseg.model.ModelConfig`; off by default). ``second_stage_folds``
     > 0 adds the second stage of :mod:`anseg.refine`, cross-fitted over that
-    many folds of the training meshes (off by default). ``new_layouts``
+    many folds of the training meshes (off by default). ``augment_copies``
+    adds that many copies of every training mesh, stretched and tessellated
+    anew (:mod:`anseg.augment`; off by default). ``new_layouts``
     rebuilds every hierarchy, the input level's layout included, every
     ``recollapse_every`` epochs with another layout seed (other K-means
     starts, and with ``layout_frame="random"`` another frame for the token
@@ -101,12 +104,15 @@ class TrainConfig:
     diffusion_blocks: int = 0
     new_layouts: bool = False
     second_stage_folds: int = 0
+    augment_copies: int = 0
     seed: int = 0
     device: str = "auto"
 
     def __post_init__(self):
         if self.epochs < 1 or self.recollapse_every < 1:
             raise ValueError("epochs and recollapse_every must be >= 1")
+        if self.augment_copies < 0:
+            raise ValueError(f"augment_copies must be >= 0, got {self.augment_copies}")
         if self.second_stage_folds == 1 or self.second_stage_folds < 0:
             raise ValueError(f"second_stage_folds must be 0 (no second stage) or at least 2, got {self.second_stage_folds}")
         if self.average_last < 0:
@@ -235,6 +241,8 @@ def fit_and_time(
         raise ValueError("depth 0 (a per-face classifier without attention) needs mode 'none': nothing would rank the collapses")
     device = resolve_device(train.device)
     seed_everything(train.seed)
+    originals = list(train_set)
+    train_set = [*originals, *(copy for item in originals for copy in augmented(item, train.augment_copies, train.seed))]
     groups = level_zero_features(train_set, config, progress=progress)
     mean, std = feature_statistics([input_groups(g, config.local_scale) for g in groups])
     network = AttentionSegmenter(
@@ -286,7 +294,7 @@ def fit_and_time(
         network.load_state_dict(state.averaged())
     network.eval()
     if train.second_stage_folds:
-        model.refiner = _second_stage(train_set, groups, label_names, config, train)
+        model.refiner = _second_stage(originals, groups[: len(originals)], label_names, config, train)
     return (model, *state.seconds_spent())
 
 

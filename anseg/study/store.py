@@ -36,7 +36,7 @@ SETTINGS_ADDED_LATER = {
                 "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz"},
     "train": {"embed_norm": False, "schedule": "constant", "detach_share": False,
               "average_last": 0, "diffusion_blocks": 0, "new_layouts": False,
-              "second_stage_folds": 0},
+              "second_stage_folds": 0, "augment_copies": 0},
 }
 # The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
 # from other features has other keys, so no stored result or model is reused across a change of features.
