@@ -41,7 +41,7 @@ from anseg.graphcut import smooth as graph_cut
 from anseg.hierarchy import Hierarchy, Level, pool
 from anseg.mesh import Mesh
 from anseg.model import AttentionSegmenter, Output, SpectralInput, model_config
-from anseg.refine import Refiner, anchor_features
+from anseg.refine import Refiner
 
 # how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
@@ -403,7 +403,8 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
             probs = probs + class_probabilities(member, hierarchy, again, device)
     probs = probs / (config.passes * (1 + len(ensemble)))
     if model.refiner is not None:  # the second stage reads where each face sits relative to the parts found
-        probs = model.refiner.probabilities(face_features(groups, config), anchor_features(mesh, probs))
+        own = face_features(groups, config)
+        probs = model.refiner.refine(mesh, own, probs)
     raw = probs.argmax(axis=1)
     labels = (graph_cut(mesh, probs, weight=config.smooth_weight, concave_discount=config.concave_discount)
               if config.smooth_weight > 0 else raw)

@@ -69,8 +69,12 @@ class Refiner(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.net((x - self.mean) / self.std)
 
+    def refine(self, mesh: Mesh, face_features: np.ndarray, probabilities: np.ndarray) -> np.ndarray:
+        """(F, C) float64 class probabilities of one mesh from the first stage's ``probabilities`` on it."""
+        return self.probabilities(face_features, anchor_features(mesh, probabilities))
+
     def probabilities(self, face_features: np.ndarray, anchors: np.ndarray) -> np.ndarray:
-        """(F, C) float64 class probabilities of one mesh."""
+        """(F, C) float64 class probabilities of one mesh from its own features and its :func:`anchor_features`."""
         self.eval()
         with torch.no_grad():
             x = torch.as_tensor(np.concatenate([face_features, anchors], axis=1), dtype=torch.float32)
