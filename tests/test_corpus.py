@@ -526,7 +526,7 @@ def coloured_labels(ply: Path, n_classes: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def by_area(labels: np.ndarray, areas: np.ndarray, sides: np.ndarray, n_classes: int) -> np.ndarray:
-    """As README says: each file face the label covering most of its triangles' area (ties to the smaller label), by
+    """As docs/usage.md says: each file face the label covering most of its triangles' area (ties to the smaller label), by
     count where its triangles have no area."""
     face = np.repeat(np.arange(len(sides)), sides)
     area, count = np.zeros((len(sides), n_classes)), np.zeros((len(sides), n_classes))
