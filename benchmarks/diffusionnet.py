@@ -12,7 +12,7 @@ rotations, 128 eigenpairs, 4 blocks of width 128 with dropout, outputs
 averaged to the faces, Adam at lr 1e-3 halved every 50 epochs, 200 epochs,
 one mesh per step, the last model scored.
 
-The "DiffusionNet (hks)" reference values in ``anseg/study/reference.py``
+The "DiffusionNet (hks), unbacked" reference values in ``anseg/study/reference.py``
 (``MEASURED_ON_OUR_DATA``) were measured this way, one run per category on an
 H100; they are printed beside each result. One run each: a rerun with
 another seed or device is not expected to match them to the last digit. On a
@@ -128,7 +128,7 @@ def run_category(dn, category: str, args, device) -> dict:
     with torch.no_grad():
         predicted = [mesh.forward(dn, model).argmax(dim=1).cpu().numpy() for mesh in test]
     scores = pooled_accuracy(predicted, [item.labels for item in test_items], [item.mesh.face_areas for item in test_items])
-    reference = measured_on_our_data(category).get(f"DiffusionNet ({args.input})")
+    reference = measured_on_our_data(category).get(f"DiffusionNet ({args.input}), unbacked")
     return {"category": category, **{key: 100 * value for key, value in scores.items()},
             "reference": reference, "train_s": train_s, "operator_s": operator_s}
 
