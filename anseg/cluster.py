@@ -326,11 +326,42 @@ def principal_frame(centroids, areas) -> np.ndarray:
     which the curve's quantisation divides out). Where two principal axes are
     equal, or a shape is symmetric along one, rounding picks the direction.
     """
+    centre, axes = _principal_axes(centroids, areas)
+    return (np.asarray(centroids, dtype=np.float64) - centre) @ axes
+
+
+def _principal_axes(centroids, areas) -> tuple[np.ndarray, np.ndarray]:
+    """The area-weighted centre (3,) and the principal axes (3, 3, one per column) of :func:`principal_frame`."""
     weights = np.asarray(areas, dtype=np.float64) / np.sum(areas)
     centred = np.asarray(centroids, dtype=np.float64) - weights @ centroids
     _, axes = np.linalg.eigh((centred * weights[:, None]).T @ centred)
-    coordinates = centred @ axes[:, ::-1]
-    return coordinates * np.where(weights @ coordinates**3 < 0, -1.0, 1.0)
+    axes = axes[:, ::-1]
+    return weights @ centroids, axes * np.where(weights @ (centred @ axes) ** 3 < 0, -1.0, 1.0)
+
+
+def canonical_order(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
+    """``mesh`` with its vertices, faces and corners in an order fixed by the surface alone, and each face's input face.
+
+    Vertices in the order of their coordinates in :func:`principal_frame`'s
+    frame; each face's corners turned to start at its lowest vertex, all
+    faces reversed where the surface's signed volume about its area centre
+    is negative (the outward side as :mod:`anseg.features` reads it); faces
+    in the order of their corners. A mesh whose file lists its faces or
+    vertices in another order, or its faces the other way round, becomes
+    the same mesh, so every later tie (the collapse's, K-means', a sum's
+    order) is broken the same way.
+    """
+    centre, axes = _principal_axes(mesh.face_centroids, mesh.face_areas)
+    vertex_order = np.lexsort(((mesh.vertices - centre) @ axes).T[::-1])
+    new_id = np.empty(mesh.n_vertices, dtype=np.int64)
+    new_id[vertex_order] = np.arange(mesh.n_vertices)
+    faces = new_id[mesh.faces]
+    if (mesh.face_normals * mesh.face_areas[:, None] * (mesh.face_centroids - centre)).sum() < 0:
+        faces = faces[:, ::-1]
+    first = faces.argmin(axis=1)
+    faces = np.take_along_axis(faces, (first[:, None] + np.arange(3)) % 3, axis=1)
+    input_face = np.lexsort(faces.T[::-1])
+    return Mesh(mesh.vertices[vertex_order], faces[input_face]), input_face
 
 
 def random_frame(centroids, seed: int) -> np.ndarray:

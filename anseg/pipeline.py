@@ -34,7 +34,7 @@ import torch
 
 from anseg import collapse, features
 from anseg.cache import atomic_write
-from anseg.cluster import FRAMES, PatchLayout, layout
+from anseg.cluster import FRAMES, PatchLayout, canonical_order, layout
 from anseg.geometry import spectral
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
@@ -71,6 +71,10 @@ class SegmentConfig:
     the coordinates as given, the surface's principal axes, which do not
     depend on the pose or on the file's face order, or a rotation drawn from
     ``seed`` (each pass of ``passes`` then orders the tokens in another frame).
+    ``canonical`` segments the mesh in :func:`anseg.cluster.canonical_order`
+    (its vertices, faces and corners in an order fixed by the surface), so
+    that the file's order and the faces' orientation cannot change a label;
+    the returned levels are then the canonical mesh's.
     """
 
     cycles: int = 4
@@ -88,6 +92,7 @@ class SegmentConfig:
     density_range: float = 8.0
     passes: int = 1
     layout_frame: str = "xyz"
+    canonical: bool = False
     seed: int = 0
 
     def __post_init__(self):
@@ -385,6 +390,14 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     ``model``'s. Raises MeshError for a mesh that fails ``validate()``.
     """
     config = config or model.config
+    if config.canonical:
+        canonical, input_face = canonical_order(mesh)
+        groups = None if groups is None else {name: block[input_face] for name, block in groups.items()}
+        result = segment(canonical, model, replace(config, canonical=False), groups, device, progress, ensemble)
+        back = np.empty_like(input_face)
+        back[input_face] = np.arange(len(input_face))
+        return replace(result, labels=result.labels[back], probabilities=result.probabilities[back],
+                       unsmoothed_labels=result.unsmoothed_labels[back])
     for other in ensemble:
         if other.n_classes != model.n_classes or other.config.groups != model.config.groups:
             raise ValueError("an ensemble's models must share their classes and feature groups")

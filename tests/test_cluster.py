@@ -280,3 +280,24 @@ def test_a_random_frame_layout_is_fixed_by_its_seed_and_moves_with_it():
     assert same_layout(first, layout(mesh, features, k=6, patch_size=16, seed=1, frame="random"), np.arange(mesh.n_faces))
     assert not same_layout(first, layout(mesh, features, k=6, patch_size=16, seed=2, frame="random"),
                            np.arange(mesh.n_faces))
+
+
+@pytest.mark.parametrize("change", ["face order", "vertex order", "flip"])
+def test_the_canonical_order_is_the_same_whatever_the_file_order_or_the_orientation(change):
+    from anseg.cluster import canonical_order
+
+    mesh, _ = bumpy_blob()
+    rng = np.random.default_rng(5)
+    if change == "face order":
+        moved = Mesh(mesh.vertices, mesh.faces[rng.permutation(mesh.n_faces)])
+    elif change == "vertex order":
+        p = rng.permutation(mesh.n_vertices)
+        moved = Mesh(mesh.vertices[p], np.argsort(p)[mesh.faces])
+    else:
+        moved = Mesh(mesh.vertices, mesh.faces[:, ::-1])
+    here, here_input = canonical_order(mesh)
+    there, there_input = canonical_order(moved)
+    assert np.array_equal(here.vertices, there.vertices) and np.array_equal(here.faces, there.faces)
+    # each canonical face is the input face it says it is
+    assert np.allclose(np.sort(mesh.vertices[mesh.faces[here_input]], axis=1), np.sort(here.vertices[here.faces], axis=1))
+    assert np.allclose(np.sort(moved.vertices[moved.faces[there_input]], axis=1), np.sort(there.vertices[there.faces], axis=1))

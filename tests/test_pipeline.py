@@ -10,6 +10,7 @@ import torch
 from conftest import grid_mesh
 
 from anseg import datasets
+from anseg.mesh import Mesh
 from anseg.pipeline import SegmentConfig, Segmenter, build_levels, segment
 from anseg.study.runner import run_experiment
 from anseg.study.store import Experiment
@@ -168,3 +169,14 @@ def test_every_level_gets_labels_and_attention(model, shapes):
     # a coarse face takes the area majority of the input faces it stands for: most of the area keeps its label
     back = labels[-1][levels.input_to_level(len(levels) - 1)]
     assert item.mesh.face_areas[back == item.labels].sum() > 0.8 * item.mesh.face_areas.sum()
+
+
+def test_a_canonical_segmentation_does_not_hang_on_the_file_order_or_the_orientation(model, shapes):
+    mesh = shapes[0].mesh
+    config = replace(model.config, canonical=True)
+    base = segment(mesh, model, config)
+    order = np.random.default_rng(2).permutation(mesh.n_faces)
+    shuffled = segment(Mesh(mesh.vertices, mesh.faces[order]), model, config)
+    flipped = segment(Mesh(mesh.vertices, mesh.faces[:, ::-1]), model, config)
+    assert np.array_equal(shuffled.labels, base.labels[order]) and np.array_equal(flipped.labels, base.labels)
+    assert np.allclose(shuffled.probabilities, base.probabilities[order])

@@ -33,7 +33,8 @@ REPO = Path(__file__).resolve().parents[2]
 # the value the older results ran with: at that value a field stays out of the key.
 SETTINGS_ADDED_LATER = {
     "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
-                "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz"},
+                "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz",
+                "canonical": False},
     "train": {"embed_norm": False, "schedule": "constant", "detach_share": False,
               "average_last": 0, "diffusion_blocks": 0, "new_layouts": False,
               "second_stage_folds": 0, "augment_copies": 0},
