@@ -61,7 +61,12 @@ class ModelConfig:
     to coarse levels by the pipeline), one learned time per channel
     (DiffusionNet's spectral diffusion, Sharp et al. 2022), unchanged by the
     eigenvectors' signs and by rotations inside an eigenspace of equal
-    eigenvalues. Switches that validation rejected are retired
+    eigenvalues. ``diffusion_gradients`` adds DiffusionNet's gradient
+    features to every such block: the diffused channels' gradients along
+    the surface (:func:`anseg.geometry.gradient.face_gradient`, in each
+    face's frame), each dotted with a learned rotation-and-scaling of all of
+    them (complex-linear, as DiffusionNet has it), through tanh; unchanged
+    by the choice of each face's frame. Switches that validation rejected are retired
     (:data:`RETIRED`); their runs replay at their own revision.
     """
 
@@ -77,6 +82,7 @@ class ModelConfig:
     embed_norm: bool = False  # LayerNorm on each face's embedding: bounds what a far-off input can do downstream
     spectral_pairs: int = 0  # eigenpairs of the SpectralInput the model reads (0: none)
     diffusion_blocks: int = 0  # learned diffusion blocks on the faces (class docstring)
+    diffusion_gradients: bool = False  # their gradient features (class docstring)
 
     def __post_init__(self) -> None:
         for name in ("in_features", "n_classes", "width", "heads", "patch_size"):
@@ -94,10 +100,13 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.diffusion_blocks must be >= 0, got {self.diffusion_blocks}")
         if self.diffusion_blocks and not self.spectral_pairs:
             raise ValueError("ModelConfig.diffusion_blocks need a spectrum to read (spectral_pairs > 0)")
+        if self.diffusion_gradients and not self.diffusion_blocks:
+            raise ValueError("ModelConfig.diffusion_gradients need diffusion blocks to add them to")
 
 
 class SpectralInput(NamedTuple):
-    """One level's eigenbasis: ``basis`` (F, k) per face, ``values`` (k,) eigenvalues, ``mass`` (F,) face areas summing to 1.
+    """One level's eigenbasis: ``basis`` (F, k) per face, ``values`` (k,) eigenvalues, ``mass`` (F,) face areas summing to 1,
+    and, for a model with ``diffusion_gradients``, ``gradient`` (2F, F) sparse (:func:`anseg.geometry.gradient.face_gradient`).
 
     On a coarse level the basis is the area-weighted mean of the input faces'
     (:func:`anseg.pipeline.build_levels`), still orthonormal under the
@@ -107,6 +116,7 @@ class SpectralInput(NamedTuple):
     basis: torch.Tensor
     values: torch.Tensor
     mass: torch.Tensor
+    gradient: torch.Tensor | None = None
 
 
 class Output(NamedTuple):
@@ -204,17 +214,28 @@ class SelfAttention(nn.Module):
 class SpectralDiffusion(nn.Module):
     """e + MLP([e, D_t e]), D_t the heat diffusion through the eigenbasis, one learned time per channel (:class:`ModelConfig`)."""
 
-    def __init__(self, width: int):
+    def __init__(self, width: int, gradients: bool = False):
         super().__init__()
         # times from 1e-3 to 1e-1 on the unit-area mesh: from a few faces' width to a limb's length at the start
         self.log_time = nn.Parameter(torch.linspace(math.log(1e-3), math.log(1e-1), width))
-        self.mlp = nn.Sequential(nn.Linear(2 * width, width), nn.GELU(), nn.Linear(width, width))
+        # the real and imaginary parts of a complex W x W matrix, for the gradient features
+        self.rotate = nn.Linear(width, 2 * width, bias=False) if gradients else None
+        self.mlp = nn.Sequential(nn.Linear((3 if gradients else 2) * width, width), nn.GELU(), nn.Linear(width, width))
 
     def forward(self, e: torch.Tensor, spectrum: SpectralInput) -> torch.Tensor:
         coefficients = spectrum.basis.T @ (spectrum.mass.unsqueeze(1) * e)  # (k, W)
         decay = torch.exp(-spectrum.values.unsqueeze(1) * self.log_time.exp().unsqueeze(0))  # (k, W)
         diffused = spectrum.basis @ (coefficients * decay)
-        return e + self.mlp(torch.cat([e, diffused], dim=1))
+        parts = [e, diffused]
+        if self.rotate is not None:
+            if spectrum.gradient is None:
+                raise ValueError("a block with gradient features needs the level's gradient operator (SpectralInput.gradient)")
+            g = torch.sparse.mm(spectrum.gradient, diffused)  # (2F, W): x and y along each face's frame
+            x, y = g[0::2], g[1::2]
+            real, imaginary = self.rotate.weight.chunk(2, dim=0)
+            turned_x, turned_y = x @ real.T - y @ imaginary.T, y @ real.T + x @ imaginary.T
+            parts.append(torch.tanh(x * turned_x + y * turned_y))
+        return e + self.mlp(torch.cat(parts, dim=1))
 
 
 class Block(nn.Module):
@@ -249,7 +270,8 @@ class AttentionSegmenter(nn.Module):
         layers = [nn.Linear(config.in_features, width), nn.GELU(), nn.Linear(width, width)]
         self.embed = nn.Sequential(*layers, *([nn.LayerNorm(width)] if config.embed_norm else []))
         self.share_score = nn.Linear(width, 1)
-        self.diffusion = nn.ModuleList(SpectralDiffusion(width) for _ in range(config.diffusion_blocks))
+        self.diffusion = nn.ModuleList(SpectralDiffusion(width, config.diffusion_gradients)
+                                       for _ in range(config.diffusion_blocks))
         self.blocks = nn.ModuleList(Block(config) for _ in range(config.depth))
         self.norm_out = nn.LayerNorm(width)
         context = width if config.depth else 0  # depth 0: the face's own embedding only
@@ -257,7 +279,8 @@ class AttentionSegmenter(nn.Module):
         for module in self.modules():
             if isinstance(module, nn.Linear):
                 nn.init.normal_(module.weight, mean=0.0, std=config.init_std)
-                nn.init.zeros_(module.bias)
+                if module.bias is not None:
+                    nn.init.zeros_(module.bias)
 
     def _head(self, inputs: int) -> nn.Sequential:
         width = self.config.width

@@ -36,6 +36,7 @@ from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.cluster import FRAMES, PatchLayout, canonical_order, layout
 from anseg.geometry import spectral
+from anseg.geometry.gradient import face_gradient
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
 from anseg.hierarchy import Hierarchy, Level, pool
@@ -271,8 +272,13 @@ def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, devi
     inputs = {"x": torch.as_tensor(x, device=device), "layout": level.layout}
     if model.network.config.spectral_pairs:
         area = level.mesh.face_areas
+        gradient = None
+        if model.network.config.diffusion_gradients:
+            operator = face_gradient(level.mesh.unit_area()).tocoo()
+            gradient = torch.sparse_coo_tensor(np.vstack([operator.row, operator.col]), operator.data.astype(np.float32),
+                                               operator.shape, device=device, check_invariants=False).coalesce()
         inputs["spectrum"] = SpectralInput(*(torch.as_tensor(a, dtype=torch.float32, device=device) for a in
-                                             (level.spectrum.basis, level.spectrum.values, area / area.sum())))
+                                             (level.spectrum.basis, level.spectrum.values, area / area.sum())), gradient)
     return inputs
 
 

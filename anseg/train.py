@@ -76,7 +76,8 @@ class TrainConfig:
     of them, so that a short run (a smoke test, the synthetic notebooks) need
     not change the setting. ``diffusion_blocks`` gives the network learned
     heat diffusion through the mesh's Laplacian eigenbasis
-    (:class:`~anseg.model.ModelConfig`; off by default). ``second_stage_folds``
+    (:class:`~anseg.model.ModelConfig`; off by default), and
+    ``diffusion_gradients`` their gradient features (off). ``second_stage_folds``
     > 0 adds the second stage of :mod:`anseg.refine`, cross-fitted over that
     many folds of the training meshes (off by default). ``augment_copies``
     adds that many copies of every training mesh, stretched and tessellated
@@ -102,6 +103,7 @@ class TrainConfig:
     attention_weight: float = 1.0
     boundary_rings: int = 2
     diffusion_blocks: int = 0
+    diffusion_gradients: bool = False
     new_layouts: bool = False
     second_stage_folds: int = 0
     augment_copies: int = 0
@@ -251,6 +253,7 @@ def fit_and_time(
             heads=train.heads, patch_size=config.patch_size, dropout=train.dropout, embed_norm=train.embed_norm,
             detach_share=train.detach_share,
             spectral_pairs=SPECTRUM_PAIRS if train.diffusion_blocks else 0, diffusion_blocks=train.diffusion_blocks,
+            diffusion_gradients=train.diffusion_gradients,
         )
     ).to(device)
     model = Segmenter(network, config, mean, std, list(label_names))

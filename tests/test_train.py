@@ -250,6 +250,20 @@ def test_spatial_context_trains_and_carries_the_eigenbasis_to_every_level(split)
         np.testing.assert_allclose(coarse.spectrum.basis, expected, rtol=1e-5, atol=1e-6)
 
 
+def test_gradient_features_train_and_segment(split, tmp_path):
+    from anseg.pipeline import Segmenter, segment
+
+    train_set, test_set = split
+    model = fit(train_set[:2], train_set[0].label_names, SMALL,
+                TrainConfig(diffusion_blocks=1, diffusion_gradients=True, epochs=2, width=16, depth=1), progress=False)
+    assert model.network.diffusion[0].rotate is not None
+    labels = segment(test_set[0].mesh, model).labels
+    model.save(tmp_path / "model.pt")
+    assert np.array_equal(segment(test_set[0].mesh, Segmenter.load(tmp_path / "model.pt")).labels, labels)
+    with pytest.raises(ValueError, match="diffusion_gradients need diffusion blocks"):
+        fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(diffusion_gradients=True, epochs=1), progress=False)
+
+
 def test_spatial_context_switches_leave_the_keys_alone_at_zero():
     base = _v1_human()
     assert replace(base, train=replace(base.train, diffusion_blocks=0)).key() == base.key()

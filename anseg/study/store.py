@@ -36,7 +36,7 @@ SETTINGS_ADDED_LATER = {
                 "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz",
                 "canonical": False},
     "train": {"embed_norm": False, "schedule": "constant", "detach_share": False,
-              "average_last": 0, "diffusion_blocks": 0, "new_layouts": False,
+              "average_last": 0, "diffusion_blocks": 0, "diffusion_gradients": False, "new_layouts": False,
               "second_stage_folds": 0, "augment_copies": 0},
 }
 # The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
