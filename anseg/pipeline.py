@@ -48,6 +48,8 @@ from anseg.refine import Refiner
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
 COMBINE = ("coarsest", "all", "decay", "finest")
 LOCAL_SCALES = ("unit_area", "relative")
+# the share of the agd_rel range that the largest piece of a mesh must span, below which segment warns
+AGD_SPAN_WARNING = 0.8
 PASS_SEED_STEP = 1000  # pass p of a test-time ensemble segments with seed + p * this (a collapse uses seed + level)
 
 
@@ -246,6 +248,38 @@ def input_groups(groups: dict[str, np.ndarray], local_scale: str) -> dict[str, n
     return {**groups, "edge": relative}
 
 
+class DescriptorWarning(UserWarning):
+    """Small separate pieces of a mesh set the range of a global descriptor of the rest of it."""
+
+
+def warn_of_stray_pieces(mesh: Mesh, groups: dict[str, np.ndarray]) -> None:
+    """Warn (:class:`DescriptorWarning`) when the pieces of ``mesh`` apart from its largest set the range of its AGD.
+
+    ``agd_rel`` is scaled to [0, 1] over the whole mesh, and a small piece
+    has a small AGD of its own: a speck beside a shape squeezes the shape's
+    values into a corner of the range the network was trained on, and its
+    labels can all change. The warning says so where the largest piece
+    spans less than :data:`AGD_SPAN_WARNING` of the range.
+    """
+    if "agd" not in groups:
+        return
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    pairs = mesh.face_adjacency
+    adjacency = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(mesh.n_faces, mesh.n_faces))
+    n_pieces, piece = connected_components(adjacency, directed=False)
+    if n_pieces == 1:
+        return
+    largest = piece == np.argmax(np.bincount(piece, mesh.face_areas))
+    relative = groups["agd"][largest, 1]
+    if relative.max() - relative.min() < AGD_SPAN_WARNING:
+        others = 1 - mesh.face_areas[largest].sum() / mesh.face_areas.sum()
+        warnings.warn(f"{n_pieces - 1} separate piece(s) beside the largest, {others:.2%} of the surface, set the range of "
+                      f"its AGD descriptor (it spans {relative.max() - relative.min():.0%} of it), so its labels can all "
+                      "change: remove the stray pieces before segmenting", DescriptorWarning, stacklevel=3)
+
+
 @dataclass
 class Segmentation:
     """What ``segment`` returns: labels and probabilities on the original faces, and every level."""
@@ -409,6 +443,7 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
             raise ValueError("an ensemble's models must share their classes and feature groups")
     levels = build_levels(mesh, model, config, groups, device, progress)
     groups = levels[0].groups
+    warn_of_stray_pieces(mesh, groups)
     idle = sum(level.record.n_collapses == 0 for level in levels[:-1])
     if idle:
         warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "

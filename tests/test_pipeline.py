@@ -180,3 +180,19 @@ def test_a_canonical_segmentation_does_not_hang_on_the_file_order_or_the_orienta
     flipped = segment(Mesh(mesh.vertices, mesh.faces[:, ::-1]), model, config)
     assert np.array_equal(shuffled.labels, base.labels[order]) and np.array_equal(flipped.labels, base.labels)
     assert np.allclose(shuffled.probabilities, base.probabilities[order])
+
+
+def test_a_speck_beside_the_shape_is_warned_of_and_a_shape_alone_is_not(model, shapes):
+    import warnings
+
+    from anseg.pipeline import DescriptorWarning
+
+    mesh = shapes[0].mesh
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DescriptorWarning)
+        segment(mesh, model)
+    far = mesh.vertices.max(axis=0) + 10.0
+    speck = Mesh(np.vstack([mesh.vertices, far, far + [1e-3, 0, 0], far + [0, 1e-3, 0]]),
+                 np.vstack([mesh.faces, [[mesh.n_vertices, mesh.n_vertices + 1, mesh.n_vertices + 2]]]))
+    with pytest.warns(DescriptorWarning, match="separate piece"):
+        segment(speck, model)
