@@ -36,7 +36,7 @@ def headline(results_dir: Path) -> str:
              "points this project measured on exactly our data (split 0)."
              + (f" Then our mean over {n_splits} splits and its standard deviation (in the mean row: the spread of "
                 "the 16-category mean from split to split)." if more else ""),
-             "", "| category | ours | paper | ours − paper | " + " | ".join(c.split(",")[0] for c in peers)
+             "", "| category | ours | paper | ours − paper | " + " | ".join(c.removesuffix(", our data, split 0") for c in peers)
              + (f" | ours, {n_splits} splits | std" if more else "") + " |",
              "|---|---|---|---|" + "---|" * (len(peers) + len(more))]
     for category, row in table1.iterrows():
