@@ -217,6 +217,16 @@ class Mesh:
         used = len(np.unique(self.faces))
         return used - len(self.edges) + self.n_faces
 
+    @cached_property
+    def vertex_components(self) -> np.ndarray:
+        """(V,) the connected component of each vertex, joined through the faces' edges (0, 1, ...)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        f = self.faces
+        graph = coo_matrix((np.ones(f.size), (f.ravel(), np.roll(f, 1, axis=1).ravel())), shape=(self.n_vertices,) * 2)
+        return connected_components(graph, directed=False)[1]
+
     # ------------------------------------------------------------- utilities
     def unit_area(self) -> "Mesh":
         """A copy scaled to unit total surface area, centred at the area-weighted centroid, and without unreferenced
@@ -225,9 +235,12 @@ class Mesh:
         if not area > 0:
             raise MeshError("mesh has zero total area")
         centre = (self.face_centroids * self.face_areas[:, None]).sum(axis=0) / area
-        vertices = (self.vertices - centre) / np.sqrt(area)
+        return Mesh((self.vertices - centre) / np.sqrt(area), self.faces).without_unused_vertices()
+
+    def without_unused_vertices(self) -> "Mesh":
+        """The mesh without the vertices no face uses, the others in their order (``self`` when it has none)."""
         used, faces = np.unique(self.faces, return_inverse=True)
-        return Mesh(vertices, self.faces) if len(used) == self.n_vertices else Mesh(vertices[used], faces.reshape(-1, 3))
+        return self if len(used) == self.n_vertices else Mesh(self.vertices[used], faces.reshape(-1, 3))
 
     def validate(self) -> "Mesh":
         """Raise MeshError unless the mesh is usable; return self for chaining.
@@ -352,8 +365,7 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
         raise MeshError(f"{'no faces left after repair' if len(face_map) == 0 else 'repair would drop most faces'}: "
                         f"{n_degenerate} of {len(faces)} are degenerate and {dropped - n_degenerate} repeat another, "
                         f"more than {REPAIR_MAX_DROP:.0%}; so damaged a mesh is not repaired (was it read right?)")
-    used, faces = np.unique(faces[face_map], return_inverse=True)  # sorted: the order stays
-    kept = Mesh(vertices[used], faces.reshape(-1, 3))
+    kept = Mesh(vertices, faces[face_map]).without_unused_vertices()
     # one vertex per fan: a vertex's first fan keeps its index, the others are copies appended at the end
     fans, corner_vertex = kept.corner_fans.ravel(), kept.faces.ravel()
     first_corner = np.full(kept.n_vertices, len(fans))

@@ -127,8 +127,8 @@ def load_shapes(path: str | os.PathLike, validate: bool = True) -> list[tuple[Me
     for k, chosen in enumerate(objects):
         faces, file_face, own_vertices = all_faces[chosen], all_file_faces[chosen], vertices
         if placement is not None:  # the placement's own vertices, its faces counted from its first
-            used, faces = np.unique(faces, return_inverse=True)
-            own_vertices, faces, file_face = vertices[used], faces.reshape(-1, 3), file_face - file_face[0]
+            own = Mesh(vertices, faces).without_unused_vertices()
+            own_vertices, faces, file_face = own.vertices, own.faces, file_face - file_face[0]
         in_range = faces.min() >= 0 and faces.max() < len(own_vertices)
         if suffix in _PER_CORNER_SUFFIXES and in_range:  # bad indices are left for validate to report
             own_vertices, faces = merge_identical_vertices(own_vertices, faces)

@@ -263,12 +263,8 @@ def warn_of_stray_pieces(mesh: Mesh, groups: dict[str, np.ndarray]) -> None:
     """
     if "agd" not in groups:
         return
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    pairs = mesh.face_adjacency
-    adjacency = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(mesh.n_faces, mesh.n_faces))
-    n_pieces, piece = connected_components(adjacency, directed=False)
+    piece = mesh.vertex_components[mesh.faces[:, 0]]  # the pieces the AGD measures one by one
+    n_pieces = len(np.unique(piece))  # a vertex no face uses is a component of its own, but no piece
     if n_pieces == 1:
         return
     largest = piece == np.argmax(np.bincount(piece, mesh.face_areas))

@@ -109,7 +109,7 @@ def explore(result, label_names, jupyter_backend: str = "trame"):
         if kind == "confidence":
             slider.value = 0
         mesh, rgb = colours.get((kind, slider.value), colours[("labels", slider.value)])
-        surface = polydata(_used(mesh))  # a stray vertex would set the camera's frame
+        surface = polydata(mesh.without_unused_vertices())  # a stray vertex would set the camera's frame
         surface.cell_data["colours"] = rgb
         plotter.clear_actors()
         plotter.add_mesh(surface, scalars="colours", rgb=True, preference="cell", smooth_shading=False, name="mesh")
@@ -262,10 +262,10 @@ def _for_display(shown, budget: int) -> tuple[list[tuple[int, int, Mesh, np.ndar
     out = []
     for row, column, mesh, rgb in shown:
         if id(mesh) not in drawn:
-            drawn[id(mesh)] = (_used(mesh), None)
+            drawn[id(mesh)] = (mesh.without_unused_vertices(), None)
             if cap is not None and mesh.n_faces > cap:
                 surface = polydata(drawn[id(mesh)][0]).decimate(1 - cap / mesh.n_faces)
-                light = _used(Mesh(surface.points, surface.regular_faces))
+                light = Mesh(surface.points, surface.regular_faces).without_unused_vertices()
                 drawn[id(mesh)] = light, cKDTree(mesh.face_centroids).query(light.face_centroids)[1]
         light, source = drawn[id(mesh)]
         out.append((row, column, light, rgb if source is None else rgb[source]))
@@ -291,12 +291,6 @@ def _face_cap(counts, budget: int) -> int | None:
     left = budget - np.concatenate([[0], np.cumsum(counts)[:-1]])
     shares = left // (len(counts) - np.arange(len(counts)))
     return int(shares[np.argmax(counts > shares)])
-
-
-def _used(mesh: Mesh) -> Mesh:
-    """``mesh`` without the vertices that no face uses (``mesh`` itself when it has none)."""
-    used, faces = np.unique(mesh.faces, return_inverse=True)
-    return mesh if len(used) == mesh.n_vertices else Mesh(mesh.vertices[used], faces.reshape(-1, 3))
 
 
 def _unit(mesh: Mesh) -> Mesh:

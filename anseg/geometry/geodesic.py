@@ -21,7 +21,7 @@ def average_geodesic_distance(mesh: Mesh, n_sources: int) -> np.ndarray:
 
     v, f = mesh.vertices, mesh.faces
     vertex_area = np.bincount(f.ravel(), np.repeat(mesh.face_areas / 3.0, 3), minlength=mesh.n_vertices)
-    component = _vertex_components(mesh)
+    component = mesh.vertex_components
     n_components = component.max() + 1
     component_area = np.bincount(component, vertex_area)
     solver = pp3d.MeshHeatMethodDistanceSolver(v, f)
@@ -57,12 +57,3 @@ def farthest_point_sources(points: np.ndarray, area: np.ndarray, n: int) -> tupl
         owner[closer] = i
         sources.append(nxt)
     return np.asarray(sources), np.bincount(owner, area, minlength=len(sources))
-
-
-def _vertex_components(mesh: Mesh) -> np.ndarray:
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    f = mesh.faces
-    graph = coo_matrix((np.ones(f.size), (f.ravel(), np.roll(f, 1, axis=1).ravel())), shape=(mesh.n_vertices,) * 2)
-    return connected_components(graph, directed=False)[1]
