@@ -229,12 +229,13 @@ def level_features(level: Level, index: int, n_levels: int, local_scale: str = "
     """The model's raw input on level ``index``: the feature groups side by side (as :func:`input_groups` reads them),
     then the level column."""
     column = np.full((level.mesh.n_faces, 1), index / max(1, n_levels - 1))
-    return np.concatenate([*input_groups(level.groups, local_scale).values(), column], axis=1).astype(np.float32)
+    return np.concatenate([face_features(level.groups, local_scale), column], axis=1).astype(np.float32)
 
 
-def face_features(groups: dict[str, np.ndarray], config: SegmentConfig) -> np.ndarray:
-    """The input level's feature groups side by side, as the network reads them (what the second stage reads too)."""
-    return np.concatenate(list(input_groups(groups, config.local_scale).values()), axis=1)
+def face_features(groups: dict[str, np.ndarray], local_scale: str) -> np.ndarray:
+    """A level's feature groups side by side, as the network reads them (:func:`input_groups`): what K-means
+    clusters, and, on the input level, what the second stage reads beside its anchors."""
+    return np.concatenate(list(input_groups(groups, local_scale).values()), axis=1)
 
 
 def input_groups(groups: dict[str, np.ndarray], local_scale: str) -> dict[str, np.ndarray]:
@@ -346,9 +347,8 @@ def build_levels(mesh: Mesh, model: Segmenter, config: SegmentConfig, groups: di
         if index == 0 and first_layout is not None:
             patches = first_layout
         else:
-            x = np.concatenate(list(input_groups(current_groups, config.local_scale).values()), axis=1)
-            patches = layout(current, x, k=config.clusters, patch_size=config.patch_size, seed=config.seed,
-                             frame=config.layout_frame)
+            patches = layout(current, face_features(current_groups, config.local_scale), k=config.clusters,
+                             patch_size=config.patch_size, seed=config.seed, frame=config.layout_frame)
         level = Level(current, current_groups, patches, spectrum=current_spectrum)
         levels.append(level)
         if index == config.n_levels - 1:
@@ -453,7 +453,7 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
             probs = probs + class_probabilities(member, hierarchy, again, device)
     probs = probs / (config.passes * (1 + len(ensemble)))
     if model.refiner is not None:  # the second stage reads where each face sits relative to the parts found
-        own = face_features(groups, config)
+        own = face_features(groups, config.local_scale)
         probs = model.refiner.refine(mesh, own, probs)
     raw = probs.argmax(axis=1)
     labels = (graph_cut(mesh, probs, weight=config.smooth_weight, concave_discount=config.concave_discount)

@@ -316,7 +316,7 @@ def _second_stage(train_set, groups, label_names, config: SegmentConfig, train: 
         for i in range(fold, len(train_set), folds):
             item = train_set[i]
             probs = segment(item.mesh, fold_model, config, groups[i]).probabilities
-            examples.append((face_features(groups[i], config), anchor_features(item.mesh, probs), item.labels,
+            examples.append((face_features(groups[i], config.local_scale), anchor_features(item.mesh, probs), item.labels,
                              item.mesh.face_areas))
     return fit_refiner(examples, len(label_names), seed=train.seed)
 
