@@ -102,7 +102,6 @@ def load_shapes(path: str | os.PathLike, validate: bool = True) -> list[tuple[Me
         raise MeshError(f"{path}: unsupported format {path.suffix!r} (expected one of {', '.join(SUPPORTED_SUFFIXES)})")
     if path.stat().st_size == 0:
         raise MeshError(f"{path}: the file is empty")
-    declared = _check_declared_counts(path)
     unreadable = f"{path}: cannot read mesh: not a complete {suffix[1:].upper()} file (truncated or damaged?)"
     try:
         vertices, corners, sides, placement = (*_READERS[suffix](path), None)[:4]  # a scene's reader adds its objects
@@ -115,10 +114,6 @@ def load_shapes(path: str | os.PathLike, validate: bool = True) -> list[tuple[Me
     if len(sides) == 0:
         raise MeshError(f"{path}: cannot read mesh: no triangles in it (truncated, damaged, or not in "
                         f"{suffix[1:].upper()} format?)")
-    read = {"vertex": len(vertices), "face": len(sides)}
-    short = [f"{read[kind]} of the {n} {kind} elements" for kind, n in declared.items() if read[kind] < n]
-    if short:
-        raise MeshError(f"{path}: holds only {' and '.join(short)} its header declares (truncated?)")
     if sides.min() < 3:
         raise MeshError(f"{path}: face {int(np.argmax(sides < 3))} has fewer than 3 corners")
     all_faces, all_file_faces = _fans(corners, sides)
@@ -212,12 +207,17 @@ def _read_off(path: Path):
         raise ValueError("not an OFF header")
     counts, body = (lines[0][1:], lines[1:]) if len(lines[0]) > 1 else (lines[1], lines[2:])
     n_vertices, n_faces = int(counts[0]), int(counts[1])
+    if min(n_vertices, n_faces) < 0:
+        raise ValueError("a negative element count")
+    declared = {"vertex": n_vertices, "face": n_faces}
+    _check_declared_counts(declared, path.stat().st_size, binary=False)
     if any(len(words) < 3 for words in body[:n_vertices]):
         raise MeshError("cannot read mesh (a vertex or face without 3 entries)")
     vertices = np.array([words[:3] for words in body[:n_vertices]], dtype=np.float64).reshape(-1, 3)
     polygons = [words[1:1 + int(words[0])] for words in body[n_vertices:n_vertices + n_faces]]
     if any(len(p) < int(w[0]) for p, w in zip(polygons, body[n_vertices:])):
         raise ValueError("a face line short of its indices")
+    _check_read_counts(declared, {"vertex": len(vertices), "face": len(polygons)})
     corners = np.array([i for p in polygons for i in p], dtype=np.int64)
     return vertices, corners, np.array([len(p) for p in polygons], dtype=np.int64)
 
@@ -248,6 +248,8 @@ def _read_ply(path: Path):
             elements.append((words[1], int(words[2]), []))
         elif words[:1] == ["property"]:  # (name, [type]) or, for a list, (name, [count type, item type])
             elements[-1][2].append((words[-1], [_PLY_TYPES[w] for w in words[1:-1] if w != "list"]))
+    declared = {name: count for name, count, _ in elements if name in _MIN_TEXT_BYTES}
+    _check_declared_counts(declared, len(data), binary=encoding != "ascii")
     if encoding == "ascii":
         read, body = _ply_ascii_element, body.split()
     else:
@@ -258,6 +260,7 @@ def _read_ply(path: Path):
     vertices = np.column_stack([np.asarray(found["vertex"][axis], dtype=np.float64) for axis in "xyz"])
     face = found.get("face", {})
     polygons = next((face[n] for n in ("vertex_indices", "vertex_index") if n in face), [])
+    _check_read_counts(declared, {"vertex": len(vertices), "face": len(polygons)})
     sides = np.array([len(p) for p in polygons], dtype=np.int64)
     corners = np.concatenate([np.asarray(p).ravel() for p in polygons]) if len(polygons) else np.empty(0)
     return vertices, corners.astype(np.int64), sides
@@ -404,41 +407,23 @@ _MIN_TEXT_BYTES = {"vertex": 6, "face": 8}
 _MIN_BINARY_BYTES = {"vertex": 12, "face": 13}
 
 
-def _is_count(word: str) -> bool:
-    """ASCII digits only: str.isdigit() also takes characters such as '²' that int() refuses."""
-    return word.isascii() and word.isdigit()
+def _check_declared_counts(declared: dict[str, int], size: int, binary: bool) -> None:
+    """Refuse a header that declares more vertices and faces than a file of ``size`` bytes can hold.
 
-
-def _check_declared_counts(path: Path) -> dict[str, int]:
-    """Refuse an OFF or PLY header that declares more elements than the file can hold, before anything is allocated.
-
-    Returns the declared counts (``vertex``, ``face``; empty for other formats), for the caller to compare with what was read.
+    An OFF or PLY reader calls it once it has the header and before it reads
+    (and allocates for) the body, so a damaged count costs nothing.
     """
-    size = path.stat().st_size
-    with open(path, "rb") as handle:
-        head = handle.read(4096).decode("latin-1")
-    lines = [line.split("#")[0].strip() for line in head.splitlines()]
-    counts, minimum = {}, _MIN_TEXT_BYTES
-    if path.suffix.lower() == ".off":
-        words = " ".join(line for line in lines if line).split()
-        if words and words[0].upper().endswith("OFF"):
-            words = words[1:]
-        if len(words) >= 2 and all(_is_count(w) for w in words[:2]):
-            counts = {"vertex": int(words[0]), "face": int(words[1])}
-    elif path.suffix.lower() == ".ply":
-        for line in lines:
-            parts = line.split()
-            if len(parts) == 3 and parts[0] == "element" and parts[1] in minimum and _is_count(parts[2]):
-                counts[parts[1]] = int(parts[2])
-            elif len(parts) >= 2 and parts[0] == "format" and parts[1].startswith("binary"):
-                minimum = _MIN_BINARY_BYTES
-            elif line == "end_header":
-                break
-    needed = sum(minimum[kind] * n for kind, n in counts.items())
-    if needed > size:
-        declared = ", ".join(f"{n} {kind} elements" for kind, n in counts.items())
-        raise MeshError(f"{path}: the header declares {declared}, more than its {size} bytes can hold (truncated or damaged)")
-    return counts
+    minimum = _MIN_BINARY_BYTES if binary else _MIN_TEXT_BYTES
+    if sum(minimum[kind] * n for kind, n in declared.items()) > size:
+        counts = ", ".join(f"{n} {kind} elements" for kind, n in declared.items())
+        raise MeshError(f"the header declares {counts}, more than its {size} bytes can hold (truncated or damaged)")
+
+
+def _check_read_counts(declared: dict[str, int], read: dict[str, int]) -> None:
+    """Refuse a file that holds fewer vertices or faces than its header declares: a reader may stop quietly at the end."""
+    short = [f"{read[kind]} of the {n} {kind} elements" for kind, n in declared.items() if read[kind] < n]
+    if short:
+        raise MeshError(f"holds only {' and '.join(short)} its header declares (truncated?)")
 
 
 def save_mesh(path: str | os.PathLike, mesh: Mesh, face_colors: np.ndarray | None = None) -> None:
