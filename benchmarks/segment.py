@@ -2,15 +2,16 @@
 
     python benchmarks/segment.py [--mesh FILE | --near FACES] [--model MODEL.pt | --config NAME] [--subdivide N]
                                  [--repeat 3] [--reference REV] [--set OVERRIDES] [--reference-set OVERRIDES]
+                                 [--json FILE]
 
 Without ``--mesh`` it takes the PSB test mesh closest to ``--near`` faces (25K) from
 ``$ANSEG_DATA`` (or a subdivided synthetic shape when no data is there);
 ``--subdivide 1`` splits every face in four first (a 25K mesh becomes 100K,
 twice gives 400K; ``--near 19000 --subdivide 2`` gives about 300K). Without
-``--model`` a model of the named configuration ``--config`` (default:
-``default``; ``v1`` is the network before validation) is trained for one
-epoch on three synthetic shapes: speed does not depend on what the weights
-learnt; ``--set`` gives it other settings (the field=value syntax of
+``--model`` (a file, or a shipped model's name as ``anseg models`` lists
+it) a model of the named configuration ``--config`` (default: ``default``;
+``v1`` is the network before validation) is trained for one epoch on three
+synthetic shapes: speed does not depend on what the weights learnt; ``--set`` gives it other settings (the field=value syntax of
 ``anseg.configs``), and ``--reference-set`` the reference its own (``""``:
 the defaults; with our code where there is no ``--reference``). Features,
 and the eigenbasis of a model that reads one, are computed without the
@@ -22,7 +23,9 @@ per mesh, minus the resident set after imports and loading. With
 temporary worktree) on the same mesh, and every stage is printed beside it
 with the reference's time over ours. Without ``--model`` each child trains
 its own one-epoch model, so the two codes segment with different weights
-(speed does not depend on them).
+(speed does not depend on them). ``--json FILE`` keeps the figures with the
+machine, the versions and the code revision (``results/benchmarks/`` holds
+the run the claims ledger quotes for the paper's cost claim).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import sys
 import time
 from collections import defaultdict
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 from stages import import_from, print_stages, reference_checkout, stage_timers
@@ -104,7 +108,10 @@ def measure(args) -> None:
 
     # a new mesh pays for its eigenbasis: no disk cache (the HKS features' solve is shared in memory, as in use)
     pipeline.spectral.face_spectrum = partial(pipeline.spectral.face_spectrum, cache=False)
-    model = Segmenter.load(args.model) if args.model else quick_model(args.config, args.set)
+    if not args.model:
+        model = quick_model(args.config, args.set)
+    else:
+        model = Segmenter.load(args.model) if Path(args.model).is_file() else Segmenter.pretrained(args.model)
     mesh, name = pick_mesh(args.mesh, args.subdivide, args.near)
     baseline = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     segment(mesh, model, groups=compute_groups(mesh, model.config.groups, cache=False))  # warm-up: numba and torch first calls
@@ -122,7 +129,8 @@ def measure(args) -> None:
     best = min(runs, key=lambda t: t["total"])
     what = (f"mesh: {name}, {mesh.n_faces} faces; config: {model.config.cycles} cycles at ratio {model.config.ratio}, "
             f"mode {model.config.mode}\ntorch threads: {torch.get_num_threads()}; best of {args.repeat} runs after a warm-up")
-    print(json.dumps({"what": what, "stages": best, "peak": peak / 2**20, "baseline": baseline / 2**20}))
+    print(json.dumps({"what": what, "mesh": name, "faces": mesh.n_faces, "stages": best, "peak": peak / 2**20,
+                      "baseline": baseline / 2**20}))
 
 
 def main(argv=None) -> None:
@@ -139,6 +147,7 @@ def main(argv=None) -> None:
     parser.add_argument("--reference", help="git revision whose code segments the same mesh beside this one")
     parser.add_argument("--set", default="", help="overrides of the one-epoch model's settings, field=value,... (default: none)")
     parser.add_argument("--reference-set", help="the reference run's overrides instead of --set (\"\": the defaults)")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--code", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -165,6 +174,13 @@ def main(argv=None) -> None:
     print_stages(ours["stages"], reference["stages"] if reference else None, name=label or "reference")
     print(f"peak resident memory: {ours['peak']:.2f} GiB (after loading: {ours['baseline']:.2f} GiB)"
           + (f"; {label}: {reference['peak']:.2f} GiB" if reference else ""))
+    if args.json:
+        from anseg.study.store import environment
+
+        settings = {k: v for k, v in vars(args).items() if k not in ("child", "code", "json")}
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps({"settings": settings, "ours": ours, "reference": reference,
+                                         "environment": environment()}, indent=1, default=str) + "\n")
 
 
 if __name__ == "__main__":

@@ -160,6 +160,22 @@ def test_human_falls_back_to_the_single_number_without_the_run(tmp_path):
     assert row.verdict == ledger.TIED and "per-mesh numbers not reachable" in row["our evidence"]
 
 
+def test_the_cost_row_quotes_a_stored_end_to_end_run_and_still_judges_nothing(tmp_path):
+    folder = write_evidence(tmp_path, "Cost", 0.0, 1.0)
+    cached_only = ledger.ledger(folder).set_index("claim").loc["Cost"]
+    assert "end to end" not in cached_only["our evidence"]
+    stored = folder / ledger.END_TO_END
+    stored.parent.mkdir(parents=True)
+    stored.write_text(json.dumps({
+        "ours": {"mesh": "PSB Teddy/171", "faces": 24000,
+                 "stages": {"total": 21.25, "features (level 0)": 15.5, "spectrum": 3.25}},
+        "environment": {"cpus": 2, "cuda": None, "code_revision": "0123456789abcdef"}}))
+    row = ledger.ledger(folder).set_index("claim").loc["Cost"]
+    assert row.verdict == ledger.UNTESTED
+    assert ("end to end, descriptors and eigenbasis computed: 21.2 s for PSB Teddy/171 (24000 faces) on CPU, 2 cores, "
+            "of which descriptors 15.5 s and eigenbasis 3.2 s (revision 0123456") in row["our evidence"]
+
+
 # --- the committed results -----------------------------------------------------------------------------------------------
 
 def test_every_claim_gets_one_of_four_verdicts_from_the_committed_results(results):
