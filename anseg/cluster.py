@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from anseg.mesh import Mesh
+from anseg.mesh import Mesh, degenerate_faces
 
 DEFAULT_K = 16
 DEFAULT_PATCH_SIZE = 32
@@ -339,29 +339,53 @@ def _principal_axes(centroids, areas) -> tuple[np.ndarray, np.ndarray]:
     return weights @ centroids, axes * np.where(weights @ (centred @ axes) ** 3 < 0, -1.0, 1.0)
 
 
-def canonical_order(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
-    """``mesh`` with its vertices, faces and corners in an order fixed by the surface alone, and each face's input face.
+CANONICAL_STEP = 2.0 ** -20  # the canonical pose's coordinates are rounded to this step (the surface has area 1)
 
-    Vertices in the order of their coordinates in :func:`principal_frame`'s
-    frame; each face's corners turned to start at its lowest vertex, all
-    faces reversed where the surface's signed volume about its area centre
-    is negative (the outward side as :mod:`anseg.features` reads it); faces
-    in the order of their corners. A mesh whose file lists its faces or
-    vertices in another order, or its faces the other way round, becomes
-    the same mesh, so every later tie (the collapse's, K-means', a sum's
-    order) is broken the same way.
+
+@dataclass(frozen=True)
+class Pose:
+    """Where :func:`canonical_mesh` put a mesh: canonical = (input - centre) @ axes / scale."""
+
+    centre: np.ndarray
+    axes: np.ndarray
+    scale: float
+
+    def undo(self, vertices: np.ndarray) -> np.ndarray:
+        """Canonical coordinates back in the input's frame."""
+        return np.asarray(vertices) * self.scale @ self.axes.T + self.centre
+
+
+def canonical_mesh(mesh: Mesh) -> tuple[Mesh, np.ndarray, Pose]:
+    """``mesh`` in a pose and an order fixed by the surface alone, each face's input face, and the pose it was put in.
+
+    The coordinates go to :func:`principal_frame`'s frame at unit area and
+    are rounded to :data:`CANONICAL_STEP`: a rotated, moved, scaled or
+    mirrored copy lands there too, and the rounding makes the copies'
+    coordinates equal to the last bit (the collapse turns differences in
+    the last bits into other labels). The rounding is skipped where it
+    would make a face degenerate. Vertices follow in the order of their
+    coordinates; each face's corners start at its lowest vertex, all faces
+    reversed where the signed volume about the centre is negative (the
+    outward side as :mod:`anseg.features` reads it); faces in the order of
+    their corners. A file that lists its faces or vertices in another
+    order, or its faces the other way round, gives the same mesh too.
     """
     centre, axes = _principal_axes(mesh.face_centroids, mesh.face_areas)
-    vertex_order = np.lexsort(((mesh.vertices - centre) @ axes).T[::-1])
+    pose = Pose(centre, axes, float(np.sqrt(mesh.face_areas.sum())))
+    exact = (mesh.vertices - centre) @ axes / pose.scale
+    rounded = np.round(exact / CANONICAL_STEP) * CANONICAL_STEP
+    vertices = exact if degenerate_faces(Mesh(rounded, mesh.faces)).any() else rounded
+    vertex_order = np.lexsort(vertices.T[::-1])
     new_id = np.empty(mesh.n_vertices, dtype=np.int64)
     new_id[vertex_order] = np.arange(mesh.n_vertices)
-    faces = new_id[mesh.faces]
-    if (mesh.face_normals * mesh.face_areas[:, None] * (mesh.face_centroids - centre)).sum() < 0:
+    canonical = Mesh(vertices[vertex_order], new_id[mesh.faces])
+    faces = canonical.faces
+    if (canonical.face_normals * canonical.face_areas[:, None] * canonical.face_centroids).sum() < 0:
         faces = faces[:, ::-1]
     first = faces.argmin(axis=1)
     faces = np.take_along_axis(faces, (first[:, None] + np.arange(3)) % 3, axis=1)
     input_face = np.lexsort(faces.T[::-1])
-    return Mesh(mesh.vertices[vertex_order], faces[input_face]), input_face
+    return Mesh(canonical.vertices, faces[input_face]), input_face, pose
 
 
 def random_frame(centroids, seed: int) -> np.ndarray:

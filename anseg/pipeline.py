@@ -34,7 +34,7 @@ import torch
 
 from anseg import collapse, features
 from anseg.cache import atomic_write
-from anseg.cluster import FRAMES, PatchLayout, canonical_order, layout
+from anseg.cluster import FRAMES, PatchLayout, canonical_mesh, layout
 from anseg.geometry import spectral
 from anseg.geometry.gradient import face_gradient
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
@@ -74,10 +74,11 @@ class SegmentConfig:
     the coordinates as given, the surface's principal axes, which do not
     depend on the pose or on the file's face order, or a rotation drawn from
     ``seed`` (each pass of ``passes`` then orders the tokens in another frame).
-    ``canonical`` segments the mesh in :func:`anseg.cluster.canonical_order`
-    (its vertices, faces and corners in an order fixed by the surface), so
-    that the file's order and the faces' orientation cannot change a label;
-    the returned levels are then the canonical mesh's.
+    ``canonical`` segments the mesh in :func:`anseg.cluster.canonical_mesh`
+    (a pose and an order of vertices, faces and corners fixed by the
+    surface), so that neither the mesh's placement nor the file's order nor
+    the faces' orientation can change a label; the returned levels are then
+    the canonical mesh's, their coordinates turned back to the input's pose.
     """
 
     cycles: int = 4
@@ -427,13 +428,15 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     """
     config = config or model.config
     if config.canonical:
-        canonical, input_face = canonical_order(mesh)
+        canonical, input_face, pose = canonical_mesh(mesh)
         groups = None if groups is None else {name: block[input_face] for name, block in groups.items()}
         result = segment(canonical, model, replace(config, canonical=False), groups, device, progress, ensemble)
         back = np.empty_like(input_face)
         back[input_face] = np.arange(len(input_face))
-        return replace(result, labels=result.labels[back], probabilities=result.probabilities[back],
-                       unsmoothed_labels=result.unsmoothed_labels[back])
+        levels = Hierarchy([replace(level, mesh=Mesh(pose.undo(level.mesh.vertices), level.mesh.faces))
+                            for level in result.levels])
+        return Segmentation(labels=result.labels[back], probabilities=result.probabilities[back],
+                            unsmoothed_labels=result.unsmoothed_labels[back], levels=levels)
     for other in ensemble:
         if other.n_classes != model.n_classes or other.config.groups != model.config.groups:
             raise ValueError("an ensemble's models must share their classes and feature groups")

@@ -2,6 +2,7 @@
 
     ANSEG_DATA=/work/shared/datasets python benchmarks/metamorphic.py [MODEL ...] [--data psb/Hand | human_seg]
                                      [--meshes N] [--transforms rotation mirror ...] [--seed 0] [--csv PATH]
+                                     [--set canonical=true,...]
 
 MODEL is a shipped name (``anseg models`` lists them; default: ``psb/Hand``)
 or a model file. Each test mesh is segmented as it is and after each
@@ -14,6 +15,9 @@ original faces, and the script prints, per mesh and transform:
   (area-weighted, ``anseg.metrics.accuracy``), transformed minus original;
 
 then per transform the mean and worst agreement and the mean accuracy change.
+``--set`` segments with other settings than the model's own (SegmentConfig
+fields in the field=value syntax of ``anseg.configs``; ``canonical=true``
+puts every mesh in its canonical pose and order first).
 
 The rule: a segmentation is a function of the surface, so none of these
 transforms should change a label. Each one is a change that leaves the
@@ -38,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import sys
 import time
 import warnings
@@ -45,6 +50,7 @@ import warnings
 import numpy as np
 
 from anseg import datasets, pretrained
+from anseg.configs import parse_overrides
 from anseg.mesh import Mesh
 from anseg.metrics import accuracy
 from anseg.pipeline import Segmenter, segment
@@ -121,12 +127,13 @@ def agreement(a: np.ndarray, b: np.ndarray, areas: np.ndarray) -> float:
     return float(areas[a == b].sum() / areas.sum())
 
 
-def label_fn(model: Segmenter):
-    """Per-face labels of a mesh under ``model``, its collapse warnings silenced (a small mesh is read the same way)."""
+def label_fn(model: Segmenter, config=None):
+    """Per-face labels of a mesh under ``model`` (with ``config``, else its own settings), its collapse warnings
+    silenced (a small mesh is read the same way)."""
     def labels(mesh: Mesh) -> np.ndarray:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return segment(mesh, model).labels
+            return segment(mesh, model, config).labels
     return labels
 
 
@@ -169,9 +176,17 @@ def main(argv=None) -> None:
                         help=f"of {', '.join(TRANSFORMS)} (default: all)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the rotation and the permutations")
     parser.add_argument("--csv", help="write one row per model, mesh and transform here")
+    parser.add_argument("--set", default="", metavar="OVERRIDES",
+                        help="segmentation settings instead of the model's own, field=value,... (default: none)")
     args = parser.parse_args(argv)
     if args.meshes is not None and args.meshes < 1:
         parser.error("--meshes must be at least 1")
+    try:
+        settings, train_settings = parse_overrides(args.set)
+    except ValueError as problem:
+        parser.error(str(problem))
+    if train_settings:
+        parser.error("--set takes segmentation settings only: a model's training is done")
 
     rows = []
     for model_name in args.models:
@@ -181,8 +196,9 @@ def main(argv=None) -> None:
         except (ValueError, datasets.DatasetError) as problem:
             sys.exit(f"error: {problem}")
         items = items[: args.meshes]
-        labels = label_fn(model)
-        print(f"{model_name} on {len(items)} {data} test meshes; transforms seeded {args.seed}")
+        labels = label_fn(model, dataclasses.replace(model.config, **settings))
+        print(f"{model_name} on {len(items)} {data} test meshes; transforms seeded {args.seed}"
+              + (f"; settings {args.set}" if args.set else ""))
         print(f"{'mesh':<14}{'faces':>7}{'acc %':>7}" + "".join(f"{t:>14}" for t in args.transforms)
               + f"{'seconds':>9}   (agreement % / accuracy change, points)")
         for item in items:
@@ -193,7 +209,7 @@ def main(argv=None) -> None:
             print(f"{item.name:<14}{item.mesh.n_faces:>7}{100 * result[args.transforms[0]]['accuracy']:>7.1f}{cells}"
                   f"{seconds:>9.1f}", flush=True)
             rows += [{"model": model_name, "data": data, "mesh": item.name, "faces": item.mesh.n_faces, "transform": t,
-                      "seed": args.seed, "agreement": r["agreement"], "accuracy": r["accuracy"],
+                      "seed": args.seed, "settings": args.set, "agreement": r["agreement"], "accuracy": r["accuracy"],
                       "accuracy_change": r["accuracy_change"]} for t, r in result.items()]
         print(f"summary for {model_name}:")
         print(f"  {'transform':<14}{'mean agreement %':>18}{'worst %':>9}{'mean change, points':>21}")

@@ -282,9 +282,11 @@ def test_a_random_frame_layout_is_fixed_by_its_seed_and_moves_with_it():
                            np.arange(mesh.n_faces))
 
 
-@pytest.mark.parametrize("change", ["face order", "vertex order", "flip"])
-def test_the_canonical_order_is_the_same_whatever_the_file_order_or_the_orientation(change):
-    from anseg.cluster import canonical_order
+@pytest.mark.parametrize("change", ["face order", "vertex order", "flip", "rotation", "scale and shift", "mirror"])
+def test_the_canonical_mesh_is_the_same_whatever_the_pose_the_file_order_or_the_orientation(change):
+    from scipy.spatial.transform import Rotation
+
+    from anseg.cluster import canonical_mesh
 
     mesh, _ = bumpy_blob()
     rng = np.random.default_rng(5)
@@ -293,11 +295,20 @@ def test_the_canonical_order_is_the_same_whatever_the_file_order_or_the_orientat
     elif change == "vertex order":
         p = rng.permutation(mesh.n_vertices)
         moved = Mesh(mesh.vertices[p], np.argsort(p)[mesh.faces])
-    else:
+    elif change == "flip":
         moved = Mesh(mesh.vertices, mesh.faces[:, ::-1])
-    here, here_input = canonical_order(mesh)
-    there, there_input = canonical_order(moved)
+    elif change == "rotation":
+        moved = Mesh(Rotation.random(random_state=3).apply(mesh.vertices), mesh.faces)
+    elif change == "scale and shift":
+        moved = Mesh(mesh.vertices * 1000.0 + [1e4, -2e4, 3e4], mesh.faces)
+    else:
+        moved = Mesh(mesh.vertices * [-1.0, 1.0, 1.0], mesh.faces[:, ::-1])
+    here, here_input, here_pose = canonical_mesh(mesh)
+    there, there_input, there_pose = canonical_mesh(moved)
+    # equal to the last bit, so that nothing downstream can tell the two apart
     assert np.array_equal(here.vertices, there.vertices) and np.array_equal(here.faces, there.faces)
-    # each canonical face is the input face it says it is
-    assert np.allclose(np.sort(mesh.vertices[mesh.faces[here_input]], axis=1), np.sort(here.vertices[here.faces], axis=1))
-    assert np.allclose(np.sort(moved.vertices[moved.faces[there_input]], axis=1), np.sort(there.vertices[there.faces], axis=1))
+    # each canonical face is the input face it says it is, back in the input's pose
+    for original, canonical, input_face, pose in ((mesh, here, here_input, here_pose), (moved, there, there_input, there_pose)):
+        assert np.allclose(np.sort(original.vertices[original.faces[input_face]], axis=1),
+                           np.sort(pose.undo(canonical.vertices)[canonical.faces], axis=1), atol=1e-5 * pose.scale)
+    assert np.isclose(here.face_areas.sum(), 1.0)
