@@ -17,6 +17,8 @@ A unit turns a mesh into transformer tokens in three steps:
 :class:`PatchLayout` scatters per-face arrays into a padded
 ``(n_patches, patch_size, ...)`` token tensor and gathers them back, for
 numpy arrays and torch tensors alike. :func:`layout` does all three steps.
+The frames the curve can run in (:data:`FRAMES`) and the canonical pose
+and order a mesh can be segmented in (:func:`canonical_mesh`) live here too.
 """
 
 from __future__ import annotations
