@@ -120,7 +120,21 @@ def test_training_cost_compares_cpu_seconds_on_the_cells_both_trained(tmp_path):
     assert np.isnan(comparison.training_cost(older, "cheap", "default"))
     text = comparison.write_report(results, "default", tmp_path, "cost")
     assert "training costs 0.30x the baseline's CPU time" in text
-    assert (tmp_path / "cost_paired.csv").read_text().splitlines()[0].endswith(",cost")
+    assert (tmp_path / "cost_paired.csv").read_text().splitlines()[0].endswith(",cost,revisions,baseline_revisions")
+
+
+def test_the_report_says_when_the_arms_ran_other_code_revisions(tmp_path):
+    def result(arm, category, revision, clean=True):
+        return {"arm": arm, "category": category, "fold": 0, "seed": 0, "accuracy": {"unit_area": 0.8},
+                "environment": {"code_revision": revision, "code_clean": clean}}
+
+    same = [result(arm, c, "aaaaaaa1111") for arm in ("default", "new") for c in "ABC"]
+    assert "trained at" not in comparison.write_report(same, "default", tmp_path, "same")
+    mixed = same[:3] + [result("new", "A", "bbbbbbb2222"), result("new", "B", "aaaaaaa1111", clean=False),
+                        result("new", "C", "aaaaaaa1111")]
+    text = comparison.write_report(mixed, "default", tmp_path, "mixed")
+    assert "trained at aaaaaaa aaaaaaa+ bbbbbbb, the baseline at aaaaaaa" in text
+    assert (tmp_path / "mixed_paired.csv").read_text().splitlines()[1].endswith(",aaaaaaa aaaaaaa+ bbbbbbb,aaaaaaa")
 
 
 def test_seed_spread_reads_each_cell_across_its_seeds(tmp_path):

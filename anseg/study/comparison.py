@@ -9,7 +9,7 @@ replicates, and for each arm against the baseline the paired difference: per
 95 % percentile interval from a two-stage bootstrap (categories resampled
 with replacement, then the folds inside each drawn category), and what the
 arm's training costs: its CPU seconds over the baseline's on the cells both
-trained. The decision rule: adopt when the interval excludes 0 and the mean
+trained, and the code revisions each arm's cells ran. The decision rule: adopt when the interval excludes 0 and the mean
 is positive.
 """
 
@@ -86,6 +86,21 @@ def training_fit(results: list[dict], arm: str, category: str) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
+def revisions(results: list[dict], arm: str) -> str:
+    """The code revisions an arm's cells were trained at, short and sorted ("+" where the code differed from its
+    commit, "?" where a cell recorded none).
+
+    A paired difference reads like with like only where both arms ran one
+    revision: moving the code can move a cell as much as the effects judged.
+    """
+    found = set()
+    for r in results:
+        if r["arm"] == arm:
+            machine = r.get("environment", {})
+            found.add((machine.get("code_revision") or "?")[:7] + ("+" if machine.get("code_clean") is False else ""))
+    return " ".join(sorted(found))
+
+
 def seed_spread(table: dict) -> list[dict]:
     """How far each arm moves from seed to seed, over the (category, fold) cells run with two seeds or more.
 
@@ -135,7 +150,8 @@ def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict
         rows.append({"arm": arm, "category": "suite mean", "mean": float(np.mean(means)),
                      "std": float(np.std(complete, ddof=1)) if len(complete) > 1 else float("nan"), "runs": len(cells),
                      "train_mean": float(np.mean(fits))})
-    comparisons = [{**paired_difference(table, arm, baseline), "cost": training_cost(results, arm, baseline)}
+    comparisons = [{**paired_difference(table, arm, baseline), "cost": training_cost(results, arm, baseline),
+                    "revisions": revisions(results, arm), "baseline_revisions": revisions(results, baseline)}
                    for arm in arms if arm != baseline]
     return rows, comparisons
 
@@ -163,8 +179,10 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
             else:
                 verdict = "adopt" if c["low"] > 0 else ("worse" if c["high"] < 0 else "no evidence")
             cost = f"; training costs {c['cost']:.2f}x the baseline's CPU time" if np.isfinite(c["cost"]) else ""
+            mixed = (f"; trained at {c['revisions']}, the baseline at {c['baseline_revisions']}"
+                     if c["revisions"] != c["baseline_revisions"] or " " in c["revisions"] else "")
             lines.append(f"  {c['arm']:<24} {c['mean']:+6.2f} [{c['low']:+6.2f}, {c['high']:+6.2f}] "
-                         f"({c['categories']} categories, {c['cells']} cells): {verdict}{cost}")
+                         f"({c['categories']} categories, {c['cells']} cells): {verdict}{cost}{mixed}")
     if spread:
         lines.append("\nfrom seed to seed (range over seeds: of one cell's accuracy, median and largest; of the suite mean):")
         lines += [f"  {r['arm']:<24} {r['median_range']:5.2f} median, {r['max_range']:5.2f} largest over {r['cells']} cells; "
