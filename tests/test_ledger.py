@@ -15,6 +15,8 @@ from anseg.study import ledger, reference
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 UNTESTABLE = {"COSEG accuracy", "Better than MeshCNN and Guo et al.", "Cost"}
 CATEGORIES, SPLITS, MESHES = ("Airplane", "Human", "Teddy"), range(4), [f"Human/{i}" for i in range(8)]
+ABLATION_RUNS = ("table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv")  # judged on the paper's
+ABLATION_CLAIMS = {"Downsampling order", "More cycles help", "N = 4, ratio 0.5", "All four feature groups"}
 HUMAN_PARAMETERS = {"dataset": "human_seg", "config": "default", "epochs": 60, "seed": 0, "device": "auto", "smoke": False,
                     "category": None, "output_dir": ".."}
 
@@ -40,11 +42,13 @@ def unit_effect(favour: float, noise: float):
     return lambda index: favour + noise * pattern[index % 4]
 
 
-def write_evidence(folder: Path, claim: str, favour: float, noise: float) -> Path:
+def write_evidence(folder: Path, claim: str, favour: float, noise: float, papers_method: bool = True) -> Path:
     """Small result files with the columns of the real ones, in which ``claim``'s arm minus its baseline is the unit effect.
 
     Each (category, split) and each test mesh gets its own effect; every
     category and split has its own difficulty too, which the pairing cancels.
+    With ``papers_method`` the ablations' runs of the paper's configuration
+    (what those rows judge) are written too, with the same effects.
     """
     folder.mkdir(parents=True, exist_ok=True)
     delta = unit_effect(favour, noise)
@@ -98,6 +102,9 @@ def write_evidence(folder: Path, claim: str, favour: float, noise: float) -> Pat
     pd.DataFrame([{"category": c, "split": s, "features": f, "unit_area": level(c, s) + (d if f == "edge+gc+sdf+agd" else shift)}
                   for c, s, d in units for f, shift in {**sets, "edge+gc+sdf+agd": None}.items()]
                  ).to_csv(folder / "fig12_features.csv", index=False)
+    if papers_method:
+        for name in ABLATION_RUNS:
+            shutil.copy(folder / name, folder / ledger.papers_method_file(name))
     return folder
 
 
@@ -119,18 +126,41 @@ def test_a_claim_of_several_parts_needs_every_part(tmp_path):
     assert ledger.combined(*[ledger.effect(pd.Series([1.0, 2.0, 3.0], name="x").rename_axis("mesh"), "a")] * 2) \
         == ledger.REPRODUCED
     folder = write_evidence(tmp_path, "Downsampling order", 3.0, 1.0)
-    runs = pd.read_csv(folder / "table4_ablation_runs.csv")
+    table4 = folder / ledger.papers_method_file("table4_ablation_runs.csv")
+    runs = pd.read_csv(table4)
     uniform = runs["mode"] == "uniform"
     runs.loc[uniform, "unit_area"] = runs.loc[runs["mode"] == "none", "unit_area"].to_numpy()  # uniform ties none
-    runs.to_csv(folder / "table4_ablation_runs.csv", index=False)
+    runs.to_csv(table4, index=False)
     assert verdicts(folder)["Downsampling order"] == ledger.TIED  # nonuniform > uniform, but uniform ties none
     runs.loc[uniform, "unit_area"] += 6.0 * 2  # uniform far above nonuniform: one part lost
-    runs.to_csv(folder / "table4_ablation_runs.csv", index=False)
+    runs.to_csv(table4, index=False)
     assert verdicts(folder)["Downsampling order"] == ledger.NOT_REPRODUCED
-    features = pd.read_csv(folder / "fig12_features.csv")
+    fig12 = folder / ledger.papers_method_file("fig12_features.csv")
+    features = pd.read_csv(fig12)
     features.loc[features.features == "edge", "unit_area"] += 100.0  # the smallest set now best: part one lost, AGD still adds
-    features.to_csv(folder / "fig12_features.csv", index=False)
+    features.to_csv(fig12, index=False)
     assert verdicts(folder)["All four feature groups"] == ledger.NOT_REPRODUCED
+
+
+def test_the_ablations_are_judged_on_the_papers_method_and_untested_without_it(tmp_path):
+    """Our default departs from the paper's method where these claims are decided: its runs are shown, never judged."""
+    folder = write_evidence(tmp_path / "ours_only", "Downsampling order", 3.0, 1.0, papers_method=False)
+    (folder / "table4_ablation.json").write_text(json.dumps({"notebook": "table4_ablation", "configuration": "default"}))
+    table = ledger.ledger(folder).set_index("claim")
+    for claim in ABLATION_CLAIMS:
+        assert table.loc[claim, "verdict"] == ledger.UNTESTED, claim
+        assert "the paper's method as written (paper configuration) not run here yet" in table.loc[claim, "our evidence"]
+    assert "ours (default), not judged: nonuniform − uniform +3.00 [" in table.loc["Downsampling order", "our evidence"]
+    assert table.loc["Downsampling order", "configuration"] == "default"
+    # the paper's runs tie where ours win: the row follows the paper's
+    folder = write_evidence(tmp_path / "both", "Downsampling order", 3.0, 1.0)
+    (folder / "table4_ablation.json").write_text(json.dumps({"notebook": "table4_ablation", "configuration": "default"}))
+    paper = pd.read_csv(folder / ledger.papers_method_file("table4_ablation_runs.csv"))
+    paper["unit_area"] = paper.category.map({c: 80.0 + i for i, c in enumerate(CATEGORIES)}) + paper.split
+    paper.to_csv(folder / ledger.papers_method_file("table4_ablation_runs.csv"), index=False)
+    row = ledger.ledger(folder).set_index("claim").loc["Downsampling order"]
+    assert row.verdict == ledger.TIED and row.configuration == "paper, default"
+    assert row["our evidence"].startswith("the paper's configuration: nonuniform − uniform +0.00 ")
 
 
 def test_the_two_stage_bootstrap_resamples_categories_then_splits():
@@ -186,20 +216,29 @@ def test_every_claim_gets_one_of_four_verdicts_from_the_committed_results(result
     assert set(table[table.claim.isin(UNTESTABLE)].verdict) == {ledger.UNTESTED}
     markdown = ledger.markdown(table)
     assert markdown.startswith(ledger.RULE) and ledger.LIMITATION in markdown
-    assert markdown.count("\n| ") == len(table) + 1
+    assert markdown.count("\n| ") == len(table) + 1 + len(ledger.departures()) + 1
+    # what the default changes from the paper's method, each setting from the code, the two that decide ablations among them
+    changed = {name for name, *_ in ledger.departures()}
+    assert {"combine", "train.attention_weight"} <= changed and all(what for *_, what in ledger.departures())
 
 
 def test_the_committed_verdicts_are_their_effects_intervals(results):
     """Each verdict recomputed from the committed numbers with the public helpers the notebooks use."""
     table = verdicts(results)
-    runs = pd.read_csv(results / "table4_ablation_runs.csv")
-    order = [ledger.paired_over_splits(runs, "nonuniform", "uniform"), ledger.paired_over_splits(runs, "uniform", "none")]
-    assert table["Downsampling order"] == ledger.combined(*order)
+    def judged(name):  # the ablations are judged on the paper's configuration's runs, where they are stored
+        path = results / ledger.papers_method_file(name)
+        return pd.read_csv(path) if path.is_file() else None
+
+    runs = judged("table4_ablation_runs.csv")
+    order = None if runs is None else [ledger.paired_over_splits(runs, "nonuniform", "uniform"),
+                                       ledger.paired_over_splits(runs, "uniform", "none")]
+    assert table["Downsampling order"] == (ledger.UNTESTED if order is None else ledger.combined(*order))
     meshes = pd.read_csv(results / "fig4_test_meshes.csv")
     attention, labels = ledger.fig4_effects(meshes, "paper")
     assert (table["Attention at junctions"], table["Labels survive"]) == (attention.verdict, labels.verdict)
-    features = ledger.feature_effects(pd.read_csv(results / "fig12_features.csv"))
-    assert table["All four feature groups"] == ledger.combined(*features)
+    runs = judged("fig12_features.csv")
+    assert table["All four feature groups"] == (ledger.UNTESTED if runs is None else
+                                                 ledger.combined(*ledger.feature_effects(runs)))
     psb = pd.read_csv(results / "table1_psb_runs.csv")
     gap = psb.unit_area - psb.category.map(reference.TABLE_I["methods"]["Ours (paper)"])
     units = pd.MultiIndex.from_frame(psb[["category", "split"]])
@@ -263,4 +302,5 @@ def test_fig11_readings_and_the_ledger_read_the_same_per_split_effects(tmp_path)
         assert f"({ledger.NOT_REPRODUCED})" in str(reading)
     pooled = pd.concat({r.category: r.choice.values for r in readings}, names=["category", "split"])
     evidence = ledger.ledger(folder).set_index("claim").loc["N = 4, ratio 0.5", "our evidence"]
-    assert evidence.startswith(str(ledger.effect(pooled, "the paper's choice − the best other point")))
+    pooled_effect = ledger.effect(pooled, "the paper's choice − the best other point")
+    assert evidence.startswith(f"the paper's configuration: {pooled_effect}")

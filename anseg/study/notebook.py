@@ -21,6 +21,7 @@ from pathlib import Path
 from anseg.pipeline import SegmentConfig, Segmenter
 from anseg.study.plan import (
     COMMON,
+    PLAIN_READING,
     PLANS,
     RECORD_CONFIGURATION,
     PlannedRun,
@@ -42,6 +43,20 @@ SYNTHETIC_NOTICE = (
 def percent(accuracy: dict) -> dict:
     """The readings of Eq. 5 in a result (unit_area, raw_area, faces), in percent."""
     return {reading: 100 * value for reading, value in accuracy.items()}
+
+
+def table_row(run: PlannedRun, result: dict) -> dict:
+    """One line of a notebook's runs table: the run's row, its accuracy in %, its training time, machine and key."""
+    return {**run.row, **percent(result["accuracy"]), "train_seconds": round(result["train_seconds"], 1),
+            "trained_on": trained_on(result), "key": result["key"]}
+
+
+def papers_method_note(found: int, planned: int, notebook: str) -> str:
+    """What a notebook says while the paper's configuration has only some of its runs stored (Markdown)."""
+    return (f"**The paper's method as written** (`{PLAIN_READING}` configuration): {found} of its {planned} runs are "
+            "stored. The claims ledger judges this notebook's claims on those runs once all are there "
+            f"(`python -m anseg.study.reproduce --config {PLAIN_READING} --only {notebook} --train-only`, with "
+            "`--data real` for the benchmark); until then it judges none of them.")
 
 
 class NotebookRun:
@@ -80,6 +95,19 @@ class NotebookRun:
         """The stored result of ``run`` under another named configuration, or None: read, never trained."""
         experiment, options = planned_experiment(run, {**self.parameters, "config": config})
         return self.store.get(experiment.key(options))
+
+    def other_configuration(self, config: str) -> tuple[list[tuple[PlannedRun, dict]], int]:
+        """The runs this notebook plans under another named configuration that the store holds, with their results
+        (read, never trained), and how many it plans."""
+        parameters = {**self.parameters, "config": config}
+        planned = notebook_runs(f"{self.name}.ipynb", parameters)
+        found = []
+        for run in planned:
+            experiment, options = planned_experiment(run, parameters)
+            if (result := self.store.get(experiment.key(options))) is not None:
+                self.read[result["key"]] = result
+                found.append((run, result))
+        return found, len(planned)
 
     def for_the_record(self, run: PlannedRun) -> dict | None:
         """The stored result of ``run`` under the first study's configuration, kept beside ours; never trained.
