@@ -1,6 +1,12 @@
-"""Replay one stored run: retrain it from the code revision it recorded and compare the accuracy to the last digit.
+"""Replay stored runs: retrain each from the code revision it recorded and compare the accuracy to the last digit.
 
-    python scripts/replay_run.py results/runs/<key>.json [--data DIR] [--keep]
+    python scripts/replay_run.py results/runs/<key>.json [...] [--data DIR] [--keep] [--csv FILE]
+    python scripts/replay_run.py --sample 5 [--seed 0] [--among results/table1_psb_runs.csv] [--csv FILE]
+
+``--sample N`` draws the runs itself from the keys of a runs table (Table
+I's by default), among those that can be replayed here, one revision after
+another (a revision's runs drawn by ``--seed``) so that the sample spans
+the revisions the table read; ``--csv`` keeps one line per replay.
 
 The run's recorded revision is checked out into a temporary git worktree and
 the experiment (the recorded data set, category, split and settings) is
@@ -74,6 +80,23 @@ def version_differences(env: dict) -> list[str]:
             if env.get(name) not in (None, version)]
 
 
+def sample(runs: dict[str, dict], n: int, seed: int) -> list[str]:
+    """``n`` keys of ``runs`` (key: stored record) that can be replayed here, one revision after another, each
+    revision's drawn in a seeded order, so that a small sample spans the revisions."""
+    import random
+
+    by_revision: dict[str, list[str]] = {}
+    for key in sorted(runs):
+        if why_not(runs[key]) is None:
+            by_revision.setdefault(runs[key]["environment"]["code_revision"], []).append(key)
+    rng = random.Random(seed)
+    queues = [rng.sample(keys, len(keys)) for _, keys in sorted(by_revision.items())]
+    drawn = []
+    while len(drawn) < n and any(queues):
+        drawn += [queue.pop(0) for queue in queues if queue][: n - len(drawn)]
+    return drawn
+
+
 def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
     """Retrain ``run`` at its recorded revision; the new run's key, accuracy and training seconds."""
     revision = run["environment"]["code_revision"]
@@ -97,34 +120,72 @@ def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
             subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(worktree)], capture_output=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("result", type=Path, help="a stored result, results/runs/<key>.json")
-    parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
-    parser.add_argument("--keep", action="store_true", help="keep the worktree of the recorded revision")
-    args = parser.parse_args(argv)
+def compare(path: Path, root: str | None, keep: bool) -> dict:
+    """Replay the run stored at ``path`` and print the comparison; its line for --csv (``holds``: True, False, or
+    None where it cannot be replayed here, with the reason)."""
     try:
-        run = json.loads(args.result.read_text())
+        run = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
-        print(f"replay_run: cannot read {args.result}: {exc}", file=sys.stderr)
-        return 2
+        print(f"replay_run: cannot read {path}: {exc}", file=sys.stderr)
+        return {"key": path.stem, "holds": None, "why": str(exc)}
     if reason := why_not(run):
-        print(f"replay_run: cannot replay {args.result.name}: {reason}", file=sys.stderr)
-        return 2
+        print(f"replay_run: cannot replay {path.name}: {reason}", file=sys.stderr)
+        return {"key": path.stem, "holds": None, "why": reason}
     for difference in version_differences(run["environment"]):
         print(f"replay_run: warning: {difference}", file=sys.stderr)
     try:
-        again = replay(run, args.data, args.keep)
+        again = replay(run, root, keep)
     except (LookupError, RuntimeError) as exc:
         print(f"replay_run: {exc}", file=sys.stderr)
-        return 2
+        return {"key": path.stem, "holds": None, "why": str(exc)}
     same = again["key"] == run["key"] and again["accuracy"] == run["accuracy"]
     print(f"{run['dataset']} {run['category']} split {run['split_index']} at {run['environment']['code_revision'][:12]}")
     for metric, value in run["accuracy"].items():
         print(f"  {metric:<10} stored {value!r:<22} replayed {again['accuracy'].get(metric)!r}")
     print(f"  training: stored {run['train_seconds']:.0f} s, replayed {again['train_seconds']:.0f} s")
     print("replay holds" if same else ("replay DIFFERS" + ("" if again["key"] == run["key"] else " (another key)")))
-    return 0 if same else 1
+    return {"key": run["key"], "category": run["category"], "split": run["split_index"],
+            "revision": run["environment"]["code_revision"][:12], "stored": run["accuracy"]["unit_area"],
+            "replayed": again["accuracy"].get("unit_area"), "holds": same, "why": ""}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("results", type=Path, nargs="*", help="stored results, results/runs/<key>.json")
+    parser.add_argument("--sample", type=int, metavar="N", help="replay N runs drawn from --among's keys instead")
+    parser.add_argument("--among", type=Path, default=REPO / "results" / "table1_psb_runs.csv",
+                        help="the runs table --sample draws from (default: Table I's)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of --sample's draw (default: 0)")
+    parser.add_argument("--csv", type=Path, help="write one line per run: key, revision, stored and replayed accuracy")
+    parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
+    parser.add_argument("--keep", action="store_true", help="keep the worktree of the recorded revision")
+    args = parser.parse_args(argv)
+    paths = list(args.results)
+    if args.sample is not None:
+        import csv
+
+        try:
+            with open(args.among, newline="") as handle:
+                keys = sorted({row["key"] for row in csv.DictReader(handle)})
+        except (OSError, KeyError) as exc:
+            parser.error(f"--among {args.among}: no runs table with a key column ({exc})")
+        store = REPO / "results" / "runs"
+        runs = {key: json.loads((store / f"{key}.json").read_text()) for key in keys if (store / f"{key}.json").is_file()}
+        paths += [store / f"{key}.json" for key in sample(runs, args.sample, args.seed)]
+    if not paths:
+        parser.error("give stored results, or --sample N")
+    rows = [compare(path, args.data, args.keep) for path in paths]
+    if args.csv:
+        import csv
+
+        columns = ["key", "category", "split", "revision", "stored", "replayed", "holds", "why"]
+        with open(args.csv, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=columns)
+            writer.writeheader()
+            writer.writerows({column: row.get(column, "") for column in columns} for row in rows)
+    if any(row["holds"] is None for row in rows):
+        return 2
+    return 0 if all(row["holds"] for row in rows) else 1
 
 
 if __name__ == "__main__":

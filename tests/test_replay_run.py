@@ -38,6 +38,17 @@ def test_a_run_that_cannot_be_replayed_says_why_in_one_line(tmp_path, capsys):
     assert "cannot be checked out" in capsys.readouterr().err
 
 
+def test_a_sample_spans_the_revisions_and_leaves_out_runs_that_cannot_be_replayed():
+    def run(revision, clean=True):
+        return {"environment": {"code_revision": revision * 40, "code_clean": clean, "cuda": None}}
+
+    runs = {**{f"a{i}": run("a") for i in range(6)}, **{f"b{i}": run("b") for i in range(2)}, "c0": run("c", clean=False)}
+    drawn = replay_run.sample(runs, 3, seed=0)
+    assert len(drawn) == 3 and {k[0] for k in drawn} == {"a", "b"} and "c0" not in drawn
+    assert drawn == replay_run.sample(runs, 3, seed=0) and replay_run.sample(runs, 20, seed=0).count("c0") == 0
+    assert len(replay_run.sample(runs, 20, seed=0)) == 8  # every replayable run, no more
+
+
 def test_versions_that_differ_are_named():
     assert (replay_run.version_differences({"torch": "0.0.1", "numpy": None})
             == [f"torch 0.0.1 recorded, {torch.__version__} here"])
