@@ -202,19 +202,20 @@ def papers_method_file(name: str) -> str:
 def _on_the_papers_method(results: Path, name: str, source: str, read) -> Verdict:
     """An ablation claim judged on the runs of the paper's method as written; the notebook's own beside, not judged.
 
-    ``read(runs)`` gives the evidence in words and the effects of one table
-    of runs. Without the ``paper`` configuration's runs the claim is not
+    ``read(runs, judged)`` gives the evidence in words (each part's verdict
+    only where ``judged``) and the effects of one table of runs. Without the ``paper`` configuration's runs the claim is not
     tested: the default departs from the paper's method in ways (supervised
     attention, the input level's vote) that settle such claims by construction.
     """
     record = results / f"{source}.json"
     own = (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None
-    text, effects = read(_csv(results, name))
     if own == PLAIN_READING:
+        text, effects = read(_csv(results, name), True)
         return Verdict(text, combined(*effects), (own,))
+    text, _ = read(_csv(results, name), False)
     ours = f"ours ({own})" if own else "ours"
     try:
-        paper_text, paper_effects = read(_csv(results, papers_method_file(name)))
+        paper_text, paper_effects = read(_csv(results, papers_method_file(name)), True)
     except MissingResult:
         return Verdict(f"the paper's method as written ({PLAIN_READING} configuration) not run here yet; {ours}, "
                        f"not judged: {text}", UNTESTED, (own,) if own else ())
@@ -231,12 +232,13 @@ def _ablation_order(results: Path) -> Verdict:
     """
     modes = reference.TABLE_IV["modes"]
 
-    def read(runs):
+    def read(runs, judged):
         parts = []
         for better, worse in (("nonuniform", "uniform"), ("uniform", "none")):
             difference = paired_over_splits(runs, better, worse)
             paper = np.mean([modes[better][c] - modes[worse][c] for c in modes[better]])
-            parts.append((difference, f"{difference} ({difference.verdict}; paper {paper:+.2f})"))
+            verdict = f"{difference.verdict}; " if judged else ""
+            parts.append((difference, f"{difference} ({verdict}paper {paper:+.2f})"))
         return "; ".join(text for _, text in parts) + _revisions(runs, "mode", results), [d for d, _ in parts]
 
     verdict = _on_the_papers_method(results, "table4_ablation_runs.csv", "table4_ablation", read)
@@ -389,7 +391,7 @@ def _cycles(results: Path) -> Verdict:
     a difference can test (the paper's N against the first), at a fixed N so
     that no peak is picked on the numbers it is scored on.
     """
-    def read(runs):
+    def read(runs, judged):
         units = _fig11_units(runs)
         rise = _pooled({c: u[1] for c, u in units.items()}, f"N = {reference.FIG11_CHOICE['cycles']} − N = 1")
         shares = "; ".join(f"{c} {', '.join(f'{r:g}' for r in u[0].index.unique('removed'))}" for c, u in units.items())
@@ -405,7 +407,7 @@ def _best_setting(results: Path) -> Verdict:
     The rival is picked by its mean over the same splits, which favours it:
     a tie or better for the paper's choice is read against that bias.
     """
-    def read(runs):
+    def read(runs, judged):
         units = _fig11_units(runs)
         gap = _pooled({c: u[2] for c, u in units.items()}, "the paper's choice − the best other point")
         rivals = "; ".join(f"{c} N = {u[3][1]}, removing {u[3][0]:g} (of {len(u[0])} points)" if u[3] is not None
@@ -435,10 +437,10 @@ def feature_effects(runs) -> tuple[Effect, Effect]:
 
 def _features(results: Path) -> Verdict:
     """Two parts: the full set beats the best other set, and adding AGD helps (:func:`feature_effects`)."""
-    def read(runs):
+    def read(runs, judged):
         best, agd = feature_effects(runs)
-        return (f"{best} ({best.verdict}); {agd} ({agd.verdict}); the paper gives renders, no numbers"
-                + _revisions(runs, "features", results)), [best, agd]
+        parts = "; ".join(f"{e} ({e.verdict})" if judged else str(e) for e in (best, agd))
+        return f"{parts}; the paper gives renders, no numbers{_revisions(runs, 'features', results)}", [best, agd]
 
     return _on_the_papers_method(results, "fig12_features.csv", "fig12_features", read)
 
