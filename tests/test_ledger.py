@@ -203,7 +203,7 @@ def test_the_cost_row_quotes_a_stored_end_to_end_run_and_still_judges_nothing(tm
     row = ledger.ledger(folder).set_index("claim").loc["Cost"]
     assert row.verdict == ledger.UNTESTED
     assert ("end to end, descriptors and eigenbasis computed: 21.2 s for PSB Teddy/171 (24000 faces) on CPU, 2 cores, "
-            "of which descriptors 15.5 s and eigenbasis 3.2 s (revision 0123456") in row["our evidence"]
+            "of which descriptors 15.5 s and the network's eigenbasis 3.2 s (revision 0123456") in row["our evidence"]
 
 
 # --- the committed results -----------------------------------------------------------------------------------------------
