@@ -41,7 +41,7 @@ from anseg.study.effects import (
     combined,
     effect,
 )
-from anseg.study.plan import PLAIN_READING
+from anseg.study.plan import PLAIN_READING, papers_method_file
 
 RULE = (f"One rule decides every row: the claim becomes a paired effect in its favour (positive = what the paper says), "
         f"per (category, split) or per test mesh; its mean and 95 % percentile bootstrap interval ({DRAWS:,} draws, "
@@ -194,18 +194,14 @@ def paired_over_splits(runs, better: str, worse: str) -> Effect:
     return effect(accuracy[better] - accuracy[worse], f"{better} − {worse}")
 
 
-def papers_method_file(name: str) -> str:
-    """Where a notebook writes the runs of the paper's configuration it read beside its own (``<name>_paper.csv``)."""
-    return f"{name.removesuffix('.csv')}_{PLAIN_READING}.csv"
-
-
 def _on_the_papers_method(results: Path, name: str, source: str, read) -> Verdict:
     """An ablation claim judged on the runs of the paper's method as written; the notebook's own beside, not judged.
 
     ``read(runs, judged)`` gives the evidence in words (each part's verdict
-    only where ``judged``) and the effects of one table of runs. Without the ``paper`` configuration's runs the claim is not
-    tested: the default departs from the paper's method in ways (supervised
-    attention, the input level's vote) that settle such claims by construction.
+    only where ``judged``) and the effects of one table of runs. Without the
+    ``paper`` configuration's runs the claim is not tested: the default
+    departs from the paper's method in ways (supervised attention, the input
+    level's vote) that settle such claims by construction.
     """
     record = results / f"{source}.json"
     own = (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None

@@ -27,6 +27,7 @@ from anseg.study.plan import (
     PlannedRun,
     notebook_runs,
     notebook_settings,
+    papers_method_file,
     planned_experiment,
     resolve_categories,
 )
@@ -49,14 +50,6 @@ def table_row(run: PlannedRun, result: dict) -> dict:
     """One line of a notebook's runs table: the run's row, its accuracy in %, its training time, machine and key."""
     return {**run.row, **percent(result["accuracy"]), "train_seconds": round(result["train_seconds"], 1),
             "trained_on": trained_on(result), "key": result["key"]}
-
-
-def papers_method_note(found: int, planned: int, notebook: str) -> str:
-    """What a notebook says while the paper's configuration has only some of its runs stored (Markdown)."""
-    return (f"**The paper's method as written** (`{PLAIN_READING}` configuration): {found} of its {planned} runs are "
-            "stored. The claims ledger judges this notebook's claims on those runs once all are there "
-            f"(`python -m anseg.study.reproduce --config {PLAIN_READING} --only {notebook} --train-only`, with "
-            "`--data real` for the benchmark); until then it judges none of them.")
 
 
 class NotebookRun:
@@ -99,15 +92,33 @@ class NotebookRun:
     def other_configuration(self, config: str) -> tuple[list[tuple[PlannedRun, dict]], int]:
         """The runs this notebook plans under another named configuration that the store holds, with their results
         (read, never trained), and how many it plans."""
-        parameters = {**self.parameters, "config": config}
-        planned = notebook_runs(f"{self.name}.ipynb", parameters)
-        found = []
-        for run in planned:
-            experiment, options = planned_experiment(run, parameters)
-            if (result := self.store.get(experiment.key(options))) is not None:
-                self.read[result["key"]] = result
-                found.append((run, result))
+        planned = notebook_runs(f"{self.name}.ipynb", {**self.parameters, "config": config})
+        found = [(run, result) for run in planned if (result := self.stored_result(run, config)) is not None]
+        self.read.update({result["key"]: result for _, result in found})
         return found, len(planned)
+
+    def papers_method(self, runs_file: str):
+        """This notebook's runs under the paper's configuration, as a runs table written for the claims ledger
+        (:func:`~anseg.study.plan.papers_method_file` of ``runs_file``), and None; or None and what to say instead
+        (Markdown) where the notebook runs that configuration itself or some of its runs are not stored yet (a
+        table from an earlier run is removed then: part of the runs must not stand for all of them)."""
+        import pandas as pd
+
+        if self.parameters["config"] == PLAIN_READING:
+            return None, ("This notebook runs the paper's method as written itself: the readings above are the ones "
+                          "the ledger judges.")
+        path = self.results_dir / papers_method_file(runs_file)
+        found, planned = self.other_configuration(PLAIN_READING)
+        if len(found) < planned:
+            path.unlink(missing_ok=True)
+            return None, (f"**The paper's method as written** (`{PLAIN_READING}` configuration): {len(found)} of its "
+                          f"{planned} runs are stored. The claims ledger judges this notebook's claims on those runs "
+                          f"once all are there (`python -m anseg.study.reproduce --config {PLAIN_READING} --only "
+                          f"{self.name} --train-only`, with `--data real` for the benchmark); until then it judges "
+                          "none of them.")
+        runs = pd.DataFrame([table_row(run, result) for run, result in found])
+        runs.to_csv(path, index=False)
+        return runs, None
 
     def for_the_record(self, run: PlannedRun) -> dict | None:
         """The stored result of ``run`` under the first study's configuration, kept beside ours; never trained.

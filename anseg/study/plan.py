@@ -112,6 +112,12 @@ def _table3(p: dict) -> list[PlannedRun]:
     return [PlannedRun({}, p["dataset"], p["category"])]
 
 
+def papers_method_file(name: str) -> str:
+    """Where a notebook writes the runs of the paper's configuration it read beside its own (``<name>_paper.csv``),
+    for the claims ledger to judge the paper's claims on."""
+    return f"{name.removesuffix('.csv')}_{PLAIN_READING}.csv"
+
+
 def table4_rows(config: str) -> list[str]:
     """Table IV's rows a configuration runs: the paper's method as written, only the three the paper has."""
     return [row for row in TABLE_IV_ROWS if config != PLAIN_READING or row != "none, transformer"]
