@@ -375,19 +375,19 @@ def canonical_mesh(mesh: Mesh) -> tuple[Mesh, np.ndarray, Pose]:
     centre, axes = _principal_axes(mesh.face_centroids, mesh.face_areas)
     pose = Pose(centre, axes, float(np.sqrt(mesh.face_areas.sum())))
     exact = (mesh.vertices - centre) @ axes / pose.scale
-    rounded = np.round(exact / CANONICAL_STEP) * CANONICAL_STEP
-    vertices = exact if degenerate_faces(Mesh(rounded, mesh.faces)).any() else rounded
-    vertex_order = np.lexsort(vertices.T[::-1])
+    posed = Mesh(np.round(exact / CANONICAL_STEP) * CANONICAL_STEP, mesh.faces)
+    if degenerate_faces(posed).any():
+        posed = Mesh(exact, mesh.faces)
+    vertex_order = np.lexsort(posed.vertices.T[::-1])
     new_id = np.empty(mesh.n_vertices, dtype=np.int64)
     new_id[vertex_order] = np.arange(mesh.n_vertices)
-    canonical = Mesh(vertices[vertex_order], new_id[mesh.faces])
-    faces = canonical.faces
-    if (canonical.face_normals * canonical.face_areas[:, None] * canonical.face_centroids).sum() < 0:
+    faces = new_id[mesh.faces]
+    if (posed.face_normals * posed.face_areas[:, None] * posed.face_centroids).sum() < 0:  # about the centre, at 0
         faces = faces[:, ::-1]
     first = faces.argmin(axis=1)
     faces = np.take_along_axis(faces, (first[:, None] + np.arange(3)) % 3, axis=1)
     input_face = np.lexsort(faces.T[::-1])
-    return Mesh(canonical.vertices, faces[input_face]), input_face, pose
+    return Mesh(posed.vertices[vertex_order], faces[input_face]), input_face, pose
 
 
 def random_frame(centroids, seed: int) -> np.ndarray:
