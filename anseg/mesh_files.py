@@ -201,7 +201,8 @@ def _read_obj(path: Path):
 def _read_off(path: Path):
     """Vertices and polygons of an OFF file as written, polygons of any number of sides (trimesh's reader splits quads
     out of order); colours after the coordinates or the indices are left out."""
-    lines = [line.split("#", 1)[0].split() for line in path.read_bytes().decode("utf-8", errors="replace").splitlines()]
+    data = path.read_bytes()
+    lines = [line.split("#", 1)[0].split() for line in data.decode("utf-8", errors="replace").splitlines()]
     lines = [words for words in lines if words]
     if not re.fullmatch(r"(ST)?C?N?OFF", lines[0][0]):
         raise ValueError("not an OFF header")
@@ -210,7 +211,7 @@ def _read_off(path: Path):
     if min(n_vertices, n_faces) < 0:
         raise ValueError("a negative element count")
     declared = {"vertex": n_vertices, "face": n_faces}
-    _check_declared_counts(declared, path.stat().st_size, binary=False)
+    _check_declared_counts(declared, len(data), binary=False)
     if any(len(words) < 3 for words in body[:n_vertices]):
         raise MeshError("cannot read mesh (a vertex or face without 3 entries)")
     vertices = np.array([words[:3] for words in body[:n_vertices]], dtype=np.float64).reshape(-1, 3)

@@ -11,7 +11,8 @@ twice gives 400K; ``--near 19000 --subdivide 2`` gives about 300K). Without
 ``--model`` (a file, or a shipped model's name as ``anseg models`` lists
 it) a model of the named configuration ``--config`` (default: ``default``;
 ``v1`` is the network before validation) is trained for one epoch on three
-synthetic shapes: speed does not depend on what the weights learnt; ``--set`` gives it other settings (the field=value syntax of
+synthetic shapes: speed does not depend on what the weights learnt;
+``--set`` gives it other settings (the field=value syntax of
 ``anseg.configs``), and ``--reference-set`` the reference its own (``""``:
 the defaults; with our code where there is no ``--reference``). Features,
 and the eigenbasis of a model that reads one, are computed without the

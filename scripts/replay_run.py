@@ -26,6 +26,7 @@ round differently from one version to the next.
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import subprocess
@@ -162,8 +163,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     paths = list(args.results)
     if args.sample is not None:
-        import csv
-
         try:
             with open(args.among, newline="") as handle:
                 keys = sorted({row["key"] for row in csv.DictReader(handle)})
@@ -176,8 +175,6 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("give stored results, or --sample N")
     rows = [compare(path, args.data, args.keep) for path in paths]
     if args.csv:
-        import csv
-
         columns = ["key", "category", "split", "revision", "stored", "replayed", "holds", "why"]
         with open(args.csv, "w", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=columns)

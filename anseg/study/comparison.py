@@ -9,8 +9,8 @@ replicates, and for each arm against the baseline the paired difference: per
 95 % percentile interval from a two-stage bootstrap (categories resampled
 with replacement, then the folds inside each drawn category), and what the
 arm's training costs: its CPU seconds over the baseline's on the cells both
-trained, and the code revisions each arm's cells ran. The decision rule: adopt when the interval excludes 0 and the mean
-is positive.
+trained, and the code revisions each arm's cells ran. The decision rule:
+adopt when the interval excludes 0 and the mean is positive.
 """
 
 from __future__ import annotations
