@@ -230,12 +230,25 @@ class Mesh:
     # ------------------------------------------------------------- utilities
     def unit_area(self) -> "Mesh":
         """A copy scaled to unit total surface area, centred at the area-weighted centroid, and without unreferenced
-        vertices (they make Laplacians singular): the frame every descriptor is computed in."""
+        vertices (they make Laplacians singular): the frame every descriptor is computed in.
+
+        Made once per mesh (a mesh is immutable), so that the descriptors, the
+        eigenbasis and the gradient operator of one level share the copy and
+        the tables it caches; with the same faces, it shares this mesh's
+        connectivity tables too.
+        """
+        return self._unit_area_copy
+
+    @cached_property
+    def _unit_area_copy(self) -> "Mesh":
         area = self.face_areas.sum()
         if not area > 0:
             raise MeshError("mesh has zero total area")
         centre = (self.face_centroids * self.face_areas[:, None]).sum(axis=0) / area
-        return Mesh((self.vertices - centre) / np.sqrt(area), self.faces).without_unused_vertices()
+        scaled = Mesh((self.vertices - centre) / np.sqrt(area), self.faces).without_unused_vertices()
+        if scaled.faces is self.faces:
+            scaled.__dict__.update({name: self.__dict__[name] for name in _TOPOLOGY & self.__dict__.keys()})
+        return scaled
 
     def without_unused_vertices(self) -> "Mesh":
         """The mesh without the vertices no face uses, the others in their order (``self`` when it has none)."""
@@ -282,6 +295,11 @@ class Mesh:
                             f"{REPAIR_HINT} cuts the sheets apart")
         self._valid = True
         return self
+
+
+# the cached tables that depend on the faces alone, which a moved or scaled copy with the same faces shares
+_TOPOLOGY = frozenset({"_edge_table", "edge_face_counts", "edge_faces", "face_neighbors", "interior_edges",
+                       "corner_fans", "boundary_loop_count", "vertex_components"})
 
 
 def _count_distinct_rows(rows: np.ndarray, n_values: int) -> int:

@@ -67,6 +67,25 @@ def test_normalized_has_unit_area_and_centre():
     assert np.allclose((m.face_centroids * m.face_areas[:, None]).sum(0), 0, atol=1e-12)
 
 
+def test_unit_area_copy_is_made_once_and_its_shared_tables_equal_its_own():
+    mesh = grid_mesh(4)
+    neighbors = mesh.face_neighbors
+    copy = mesh.unit_area()
+    assert mesh.unit_area() is copy
+    assert copy.face_neighbors is neighbors  # shared, not built again
+    fresh = Mesh(copy.vertices, copy.faces)
+    for table in ("edges", "face_edges", "edge_faces", "face_neighbors", "corner_fans", "vertex_components"):
+        assert np.array_equal(getattr(copy, table), getattr(fresh, table)), table
+    assert copy.boundary_loop_count == fresh.boundary_loop_count == 1
+
+
+def test_unit_area_copy_without_unused_vertices_builds_its_own_tables():
+    mesh = Mesh(np.vstack([TETRA_V, [[9.0, 9.0, 9.0]]]), TETRA_F).validate()
+    copy = mesh.unit_area()
+    assert copy.n_vertices == 4 and "_edge_table" not in copy.__dict__
+    assert np.array_equal(copy.edges, Mesh(TETRA_V, TETRA_F).edges)
+
+
 @pytest.mark.parametrize("suffix", [".off", ".obj", ".ply"])
 def test_save_load_roundtrip_keeps_order(tmp_path, suffix):
     m = grid_mesh(3)
