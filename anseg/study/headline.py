@@ -73,7 +73,8 @@ def headline(results_dir: Path) -> str:
     if human.is_file():
         table3 = pd.read_csv(human)
         lines += ["", "Human body set as MeshCNN distributes it ([notebook](notebooks/executed/table3_human.ipynb)); "
-                  "not the paper's full-resolution set, so compared with peers that report on this one:", "",
+                  "the paper's split; the paper does not say whether it used these simplified meshes, so compared with "
+                  "peers that report on them:", "",
                   "| method | accuracy | metric |", "|---|---|---|"]
         lines += [f"| {row.method} | {row.accuracy:.2f} | {row.metric} |" for row in table3.itertuples()]
     return "\n".join(lines)

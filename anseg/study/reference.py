@@ -6,8 +6,9 @@ say so next to it:
 
 * the paper (Eq. 5) and its tables: area-weighted accuracy over the test
   faces, on the data sets as the paper describes them (PSB with the
-  Kalogerakis et al. labels; the 8 small COSEG sets; the full-resolution
-  human body set of Maron et al. 2017);
+  Kalogerakis et al. labels; the 8 small COSEG sets; the human body set
+  of Maron et al. 2017 with its 381 / 18 split, the version of its meshes
+  unsaid);
 * peers on the SAME simplified data we have (MeshCNN's COSEG large sets and
   human_seg, :data:`SAME_DATA`): some count labelled faces, some labelled
   edges (MeshCNN's own metric), as marked per entry;
@@ -71,8 +72,9 @@ TABLE_II = {
 
 TABLE_III = {
     "source": f"{PAPER}, Table III",
-    "data": "human body set of Maron et al. 2017 as the paper describes it: 381 training / 18 test models, "
-            "full resolution (our human_seg is MeshCNN's simplified version of it)",
+    "data": "human body set of Maron et al. 2017 as the paper describes it: 381 training / 18 test models; "
+            "the paper does not say whether the original meshes or MeshCNN's simplified ones (ours: human_seg, "
+            "the simplified version)",
     "metric": "Eq. 5: area-weighted accuracy over the test faces (the peers' numbers as the paper quotes them)",
     "methods": {
         "Maron et al.": 88.00, "DiffusionNet": 90.80, "Field Convolution": 92.90, "HodgeNet": 85.03,
