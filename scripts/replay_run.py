@@ -29,6 +29,7 @@ import argparse
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -119,6 +120,7 @@ def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
     finally:
         if not keep:
             subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(worktree)], capture_output=True)
+            shutil.rmtree(worktree.parent, ignore_errors=True)
 
 
 def compare(path: Path, root: str | None, keep: bool) -> dict:

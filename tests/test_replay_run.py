@@ -55,7 +55,7 @@ def test_versions_that_differ_are_named():
 
 
 @pytest.mark.slow
-def test_a_run_replays_to_the_last_digit_at_its_revision(tmp_path, capsys):
+def test_a_run_replays_to_the_last_digit_at_its_revision(tmp_path, capsys, monkeypatch):
     if code_revision()["code_clean"] is not True:
         pytest.skip("the package has uncommitted changes: a run trained now records no revision to replay")
     torch.set_num_threads(1)
@@ -63,5 +63,9 @@ def test_a_run_replays_to_the_last_digit_at_its_revision(tmp_path, capsys):
     result, _ = train_and_evaluate(experiment, {"n_shapes": 6})
     path = tmp_path / "run.json"
     path.write_text(json.dumps(result))
+    temporary = tmp_path / "temporary"
+    temporary.mkdir()
+    monkeypatch.setattr(replay_run.tempfile, "tempdir", str(temporary))
     assert replay_run.main([str(path)]) == 0, capsys.readouterr()
     assert "replay holds" in capsys.readouterr().out
+    assert not list(temporary.iterdir())  # the worktree and its folder are gone
