@@ -11,8 +11,9 @@ the revisions the table read; ``--csv`` keeps one line per replay.
 The run's recorded revision is checked out into a temporary git worktree and
 the experiment (the recorded data set, category, split and settings) is
 trained and evaluated there, in a fresh process with the recorded number of
-torch threads (one when the record predates that field), against the same
-Python environment. The replay holds when the new run has the same key and
+torch threads (one when the record predates that field) and an empty feature
+cache (older revisions key it without the code that fills it), against the
+same Python environment. The replay holds when the new run has the same key and
 the same accuracy (Eq. 5, unit area, and raw area and per face) as the
 stored one, float for float; exit status 0 then, 1 when it differs, 2 when
 the run cannot be replayed here (no revision recorded, uncommitted changes
@@ -111,7 +112,10 @@ def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
         threads = run["environment"].get("torch_threads", 1)
         job = {**{k: run[k] for k in ("dataset", "category", "split_index", "segment", "train")},
                "dataset_options": run.get("dataset_options", {}), "root": root, "threads": threads}
-        environment = {**os.environ, "PYTHONPATH": str(worktree), "OMP_NUM_THREADS": str(threads)}
+        # an empty feature cache of its own: an older revision keys the cache without the code that computes it,
+        # so a shared cache could hand it features of another revision (as it did to f28ec7061d9ca1da's first replays)
+        environment = {**os.environ, "PYTHONPATH": str(worktree), "OMP_NUM_THREADS": str(threads),
+                       "ANSEG_CACHE": str(worktree.parent / "cache")}
         done = subprocess.run([sys.executable, "-c", RETRAIN], input=json.dumps(job), cwd=worktree, env=environment,
                               capture_output=True, text=True)
         if done.returncode != 0:

@@ -69,3 +69,21 @@ def test_a_run_replays_to_the_last_digit_at_its_revision(tmp_path, capsys, monke
     assert replay_run.main([str(path)]) == 0, capsys.readouterr()
     assert "replay holds" in capsys.readouterr().out
     assert not list(temporary.iterdir())  # the worktree and its folder are gone
+
+
+def test_a_replay_reads_an_empty_feature_cache_of_its_own(tmp_path, monkeypatch):
+    calls = []
+
+    def fake_run(command, **kwargs):
+        calls.append((command, kwargs))
+        out = json.dumps({"key": "k", "accuracy": {}, "train_seconds": 0}) if "env" in kwargs else ""
+        return type("Done", (), {"returncode": 0, "stdout": out, "stderr": ""})()
+
+    monkeypatch.setattr(replay_run.subprocess, "run", fake_run)
+    monkeypatch.setattr(replay_run.tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setenv("ANSEG_CACHE", str(tmp_path / "shared-cache"))
+    record = {**_record(torch_threads=1), "segment": {}, "train": {}}
+    replay_run.replay(record)
+    (environment,) = [kwargs["env"] for _, kwargs in calls if "env" in kwargs]
+    cache = environment["ANSEG_CACHE"]
+    assert cache != str(tmp_path / "shared-cache") and cache.startswith(str(tmp_path)) and not list(tmp_path.iterdir())
