@@ -33,7 +33,6 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from anseg.cache import (
     atomic_write,
@@ -50,6 +49,7 @@ from anseg.geometry.spectral import (
 )
 from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
+from anseg.progress import progress as progress_bar
 
 FEATURES_VERSION = 1  # the feature code as a whole; stored keys and model files name it (see :func:`code`)
 
@@ -449,11 +449,11 @@ def compute_groups(mesh: Mesh, groups: Sequence[str] = DEFAULT_GROUPS, cache: bo
         return dict(zip(groups, np.split(matrix, np.cumsum(widths)[:-1], axis=1)))
     geometry = _Geometry(mesh, cfg)
     # a bar, group by group, only where it is worth watching: a large mesh, and stderr a terminal (tqdm's None)
-    quiet = True if not progress or mesh.n_faces < PROGRESS_MIN_FACES else None
+    show = None if progress and mesh.n_faces >= PROGRESS_MIN_FACES else False
     if all(name in groups or "smooth" in groups for name in ("sdf", "agd")):
         geometry.sdf_with_agd_beside()
     blocks = {g: np.ascontiguousarray(_GROUP_FUNCTIONS[g](geometry), dtype=np.float32)
-              for g in tqdm(groups, desc="features", unit="group", disable=quiet, leave=False)}
+              for g in progress_bar(groups, show=show, desc="features", unit="group", leave=False)}
     bad = [g for g, block in blocks.items() if not np.isfinite(block).all()]
     if bad:
         raise MeshError(f"feature groups {bad} came out non-finite for {mesh!r}; please report the mesh")
@@ -511,7 +511,7 @@ def compute_many(
         small = sum(meshes[i].n_faces for i in todo) < POOL_MIN_FACES
         workers = 1 if small else min(os.cpu_count() or 1, len(todo))
     calls = [(_compute_arrays, (meshes[i].vertices, meshes[i].faces, groups, cache, settings)) for i in todo]
-    with tqdm(total=len(meshes), initial=len(meshes) - len(todo), desc="features", disable=not progress) as bar:
+    with progress_bar(total=len(meshes), initial=len(meshes) - len(todo), desc="features", show=progress) as bar:
         for index, matrix in run_parallel(calls, workers):
             if isinstance(matrix, Exception):
                 raise matrix

@@ -74,14 +74,14 @@ def run_parallel(calls: Sequence[tuple[Callable, tuple]], workers: int = 1, prog
     ``scheduler`` (Dask backend): a running cluster's address; then
     ``workers`` is not used.
     """
-    from tqdm.auto import tqdm
+    from anseg.progress import progress as progress_bar
 
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     started = time.time()
-    bar = tqdm(total=len(calls), desc=desc, disable=not progress)
+    bar = progress_bar(total=len(calls), desc=desc, show=progress)
     try:
         if scheduler is None and (workers == 1 or len(calls) <= 1 or in_worker()):
             for index, (function, args) in enumerate(calls):

@@ -231,7 +231,7 @@ def fit_and_time(
     from it; the resumed run counts the seconds the checkpoint carries from
     the sessions before, so that a run record states the whole cost.
     """
-    from tqdm.auto import tqdm
+    from anseg.progress import progress as progress_bar
 
     started = time.time(), time.process_time()
 
@@ -264,7 +264,7 @@ def fit_and_time(
     state = _TrainingState(network, optimizer, order, started)
     start = state.resume(checkpoint, settings) if checkpoint else 0
 
-    bar = tqdm(range(start, train.epochs), desc="train", disable=not progress, initial=start, total=train.epochs)
+    bar = progress_bar(range(start, train.epochs), desc="train", show=progress, initial=start, total=train.epochs)
     examples: list[_Example] = []
     for epoch in bar:
         # only attention and new layouts change a hierarchy: a uniform or no collapse is otherwise built once
@@ -395,13 +395,13 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
 
     ``ensemble``: more models whose probabilities are averaged with ``model``'s (:func:`~anseg.pipeline.segment`).
     """
-    from tqdm.auto import tqdm
+    from anseg.progress import progress as progress_bar
 
     config = config or model.config
     device = next(model.network.parameters()).device
     groups = level_zero_features(test_set, config, progress=False)
     smoothed, raw, per_mesh = [], [], []
-    for item, g in tqdm(list(zip(test_set, groups)), desc="evaluate", disable=not progress):
+    for item, g in progress_bar(list(zip(test_set, groups)), desc="evaluate", show=progress):
         result = segment(item.mesh, model, config, g, device, ensemble=ensemble)
         smoothed.append(result.labels)
         raw.append(result.unsmoothed_labels)

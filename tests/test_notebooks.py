@@ -257,3 +257,14 @@ def test_status_counts_the_stored_runs_and_the_training_left(tmp_path, capsys):
     printed = capsys.readouterr().out.splitlines()
     assert printed[0].startswith("table4_ablation.ipynb") and f"1 of {after['planned']:>4} runs stored" in printed[0]
     assert printed[1].startswith("claims_ledger.ipynb") and printed[1].endswith("trains nothing")
+
+
+@pytest.mark.parametrize("name", sorted(PLANS))
+def test_an_executed_notebook_keeps_no_progress_bar(name):
+    """An executed notebook is read, not watched: a bar's carriage returns in its outputs are noise."""
+    executed = REPO / "notebooks" / "executed" / name
+    if not executed.is_file():
+        pytest.skip(f"no executed copy of {name} committed")
+    streams = [output for cell in nbformat.read(executed, as_version=4).cells for output in cell.get("outputs", [])
+               if output.get("output_type") == "stream"]
+    assert not [s["text"][:80] for s in streams if "\r" in s["text"]]

@@ -8,11 +8,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from anseg.datasets.archive import DatasetError
 from anseg.mesh import Mesh, MeshError, repair
 from anseg.mesh_files import load_mesh
+from anseg.progress import progress
 
 SPLITS = ("train", "test", "all")
 PROGRESS_MIN_MESHES = 10  # show a progress bar when loading at least this many meshes
@@ -118,4 +118,4 @@ def read_integer_column(path: os.PathLike) -> np.ndarray:
 
 def progress_bar(items, description: str, enabled: bool = True):
     """``items`` wrapped in a tqdm bar when there are many of them and ``enabled``."""
-    return tqdm(items, desc=description, unit="mesh", disable=not enabled or len(items) < PROGRESS_MIN_MESHES, leave=False)
+    return progress(items, show=enabled and len(items) >= PROGRESS_MIN_MESHES, desc=description, unit="mesh", leave=False)
