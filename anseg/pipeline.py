@@ -58,7 +58,7 @@ class SegmentConfig:
     """The switches of Algorithm 1 (the paper's 4 cycles at ratio 0.5), at the validated defaults.
 
     :mod:`anseg.configs` names the older readings: ``paper`` and ``v1`` (the
-    defaults before validation, which the committed tables ran with).
+    defaults before validation, kept for the record).
 
     ``once_per_pass`` is passed to :func:`anseg.collapse.downsample` (off by
     default, as in the committed results), and so is ``priority`` (the
