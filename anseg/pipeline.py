@@ -51,6 +51,11 @@ LOCAL_SCALES = ("unit_area", "relative")
 # the share of the agd_rel range that the largest piece of a mesh must span, below which segment warns
 AGD_SPAN_WARNING = 0.8
 PASS_SEED_STEP = 1000  # pass p of a test-time ensemble segments with seed + p * this (a collapse uses seed + level)
+# SegmentConfig's settings that came after model files and results were written, with the value those ran with: a
+# file or record that lacks one ran with that value, whatever today's default is.
+SEGMENT_SETTINGS_ADDED_LATER = {"once_per_pass": False, "local_scale": "unit_area", "priority": "score",
+                                "density_range": float("inf"), "concave_discount": 3.0,
+                                "passes": 1, "layout_frame": "xyz", "canonical": False}
 
 
 @dataclass
@@ -206,7 +211,7 @@ class Segmenter:
                              "than this anseg computes; retrain it, or use the anseg version it was made with")
         return cls(
             network=network.to(device).eval(),
-            config=SegmentConfig(**payload["segment_config"]),
+            config=SegmentConfig(**{**SEGMENT_SETTINGS_ADDED_LATER, **payload["segment_config"]}),
             feature_mean=payload["feature_mean"].numpy(),
             feature_std=payload["feature_std"].numpy(),
             label_names=list(payload["label_names"]),

@@ -58,6 +58,11 @@ from anseg.refine import Refiner, anchor_features, fit_refiner
 
 SCHEDULES = ("constant", "cosine")
 LAYOUT_SEED_STEP = 7919  # rebuild r of a training with new_layouts lays out with seed + r * this (a pass of a test uses 1000)
+# TrainConfig's settings that came after results were stored, with the value those ran with (as for SegmentConfig's,
+# anseg.pipeline.SEGMENT_SETTINGS_ADDED_LATER).
+TRAIN_SETTINGS_ADDED_LATER = {"embed_norm": False, "schedule": "constant", "detach_share": False, "average_last": 0,
+                              "diffusion_blocks": 0, "diffusion_gradients": False, "new_layouts": False,
+                              "second_stage_folds": 0, "augment_copies": 0}
 
 
 @dataclass

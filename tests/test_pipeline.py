@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 from dataclasses import replace
 
 import numpy as np
@@ -60,6 +61,20 @@ def test_saved_model_segments_identically(model, shapes, tmp_path):
     assert again.config == model.config and again.label_names == model.label_names
     mesh = shapes[6].mesh
     assert np.array_equal(segment(mesh, model).labels, segment(mesh, again).labels)
+
+
+def test_a_model_file_older_than_a_setting_segments_with_the_value_it_was_trained_with(model, tmp_path):
+    """A file written before ``priority`` or ``layout_frame`` existed ran with their first values, not today's
+    defaults, so that a change of default never changes what a shipped or stored model does."""
+    path = tmp_path / "older.pt"
+    newer = replace(model, config=replace(model.config, priority="weighted", layout_frame="principal"))
+    payload = torch.load(io.BytesIO(newer.to_bytes()), weights_only=True)
+    for name in ("priority", "layout_frame", "density_range"):
+        del payload["segment_config"][name]
+    torch.save(payload, path)
+    loaded = Segmenter.load(path).config
+    assert (loaded.priority, loaded.layout_frame, loaded.density_range) == ("score", "xyz", float("inf"))
+    assert loaded.cycles == model.config.cycles  # what the file holds, it keeps
 
 
 def test_load_rejects_other_files(tmp_path):

@@ -24,21 +24,14 @@ import torch
 from anseg import features
 from anseg.cache import atomic_write
 from anseg.model import RETIRED
-from anseg.pipeline import SegmentConfig
-from anseg.train import TrainConfig
+from anseg.pipeline import SEGMENT_SETTINGS_ADDED_LATER, SegmentConfig
+from anseg.train import TRAIN_SETTINGS_ADDED_LATER, TrainConfig
 
 REPO = Path(__file__).resolve().parents[2]
 
 # Fields of SegmentConfig ("segment") and TrainConfig ("train") introduced after results were stored, with
 # the value the older results ran with: at that value a field stays out of the key.
-SETTINGS_ADDED_LATER = {
-    "segment": {"once_per_pass": False, "local_scale": "unit_area", "priority": "score", "density_range": float("inf"),
-                "concave_discount": 3.0, "passes": 1, "layout_frame": "xyz",
-                "canonical": False},
-    "train": {"embed_norm": False, "schedule": "constant", "detach_share": False,
-              "average_last": 0, "diffusion_blocks": 0, "diffusion_gradients": False, "new_layouts": False,
-              "second_stage_folds": 0, "augment_copies": 0},
-}
+SETTINGS_ADDED_LATER = {"segment": SEGMENT_SETTINGS_ADDED_LATER, "train": TRAIN_SETTINGS_ADDED_LATER}
 # The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
 # from other features has other keys, so no stored result or model is reused across a change of features.
 FEATURES_OF_STORED_RESULTS = {"version": 1, "sdf_rays": 16, "sdf_cone_degrees": 120.0, "agd_sources": 64,
