@@ -430,12 +430,16 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     seeds); each builds its own hierarchy, and the class probabilities of all
     of them are averaged before the graph cut. The levels returned are
     ``model``'s. Raises MeshError for a mesh that fails ``validate()``.
+    ``groups``: the input level's features, if already computed; with
+    ``canonical`` they are computed on the canonical mesh instead and
+    ``groups`` is not read, because the input mesh's features differ from
+    those in the last bits (the pose, the corners' order), which the
+    collapse can amplify, and the labels would hang on the input's pose.
     """
     config = config or model.config
     if config.canonical:
         canonical, input_face, pose = canonical_mesh(mesh)
-        groups = None if groups is None else {name: block[input_face] for name, block in groups.items()}
-        result = segment(canonical, model, replace(config, canonical=False), groups, device, progress, ensemble)
+        result = segment(canonical, model, replace(config, canonical=False), None, device, progress, ensemble)
         back = np.empty_like(input_face)
         back[input_face] = np.arange(len(input_face))
         levels = Hierarchy([replace(level, mesh=Mesh(pose.undo(level.mesh.vertices), level.mesh.faces))

@@ -404,7 +404,8 @@ def evaluate(model: Segmenter, test_set, config: SegmentConfig | None = None, pr
 
     config = config or model.config
     device = next(model.network.parameters()).device
-    groups = level_zero_features(test_set, config, progress=False)
+    # with canonical, segment computes the features on the canonical meshes: the input meshes' are not read
+    groups = [None] * len(test_set) if config.canonical else level_zero_features(test_set, config, progress=False)
     smoothed, raw, per_mesh = [], [], []
     for item, g in progress_bar(list(zip(test_set, groups)), desc="evaluate", show=progress):
         result = segment(item.mesh, model, config, g, device, ensemble=ensemble)

@@ -270,11 +270,14 @@ def test_spatial_context_switches_leave_the_keys_alone_at_zero():
     assert replace(base, train=replace(base.train, diffusion_blocks=1)).key() != base.key()
 
 
-def test_evaluate_scores_match_an_independent_count(split):
+@pytest.mark.parametrize("canonical", [False, True])
+def test_evaluate_scores_match_an_independent_count(split, canonical):
     from anseg.pipeline import segment
 
     train_set, test_set = split
-    model = fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(epochs=1, width=16, depth=1), progress=False)
+    config = replace(SMALL, canonical=canonical, layout_frame="principal" if canonical else SMALL.layout_frame)
+    model = fit(train_set[:2], train_set[0].label_names, config, TrainConfig(epochs=1, width=16, depth=1),
+                progress=False)
     scores = evaluate(model, test_set[:2], progress=False)
     results = [segment(m.mesh, model) for m in test_set[:2]]
     for item, result, per_mesh in zip(test_set, results, scores["per_mesh"]):
