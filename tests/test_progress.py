@@ -5,7 +5,6 @@ import os
 import subprocess
 import sys
 
-from anseg.datasets.common import progress_bar
 from anseg.progress import progress
 
 
