@@ -100,3 +100,11 @@ def test_beside_a_table_a_notebook_says_which_machines_trained_its_runs(tmp_path
     assert nb.machines() == "Trained on one kind of machine: CPU, 2 cores (2 runs)."
     nb.read["c"] = {"environment": {"cuda": "NVIDIA H100", "cpus": 16}, "train_seconds": 60.0}
     assert nb.machines().startswith("**These runs mix machines:** CPU, 2 cores (2 runs), NVIDIA H100 (1 run).")
+
+
+def test_a_figure_shows_the_median_mesh_and_of_an_even_count_the_lower_middle_one():
+    from anseg.study.notebook import median_mesh
+
+    per_mesh = [{"name": name, "accuracy": a} for name, a in (("a", 0.9), ("b", 0.5), ("c", 0.7), ("d", 0.99))]
+    assert median_mesh(per_mesh)["name"] == "c"
+    assert median_mesh(per_mesh[:3])["name"] == "c" and median_mesh(per_mesh[1:2])["name"] == "b"

@@ -46,6 +46,15 @@ def percent(accuracy: dict) -> dict:
     return {reading: 100 * value for reading, value in accuracy.items()}
 
 
+def median_mesh(per_mesh: list[dict]) -> dict:
+    """The median entry of a run's per-mesh accuracies (of an even count, the lower of the middle two).
+
+    The mesh a figure renders is picked by this rule, so that it shows a typical mesh, not the first or the best.
+    """
+    ranked = sorted(per_mesh, key=lambda entry: entry["accuracy"])
+    return ranked[(len(ranked) - 1) // 2]
+
+
 def table_row(run: PlannedRun, result: dict) -> dict:
     """One line of a notebook's runs table: the run's row, its accuracy in %, its training time, machine and key."""
     return {**run.row, **percent(result["accuracy"]), "train_seconds": round(result["train_seconds"], 1),
