@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -46,6 +47,14 @@ def screenshot_folder(default: Path) -> Path:
 # off, so that what page_requests finds in the net log is the page's doing
 OFFLINE = ["--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE localhost, EXCLUDE 127.0.0.1",
            "--disable-background-networking", "--disable-features=AutofillServerCommunication"]
+CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None)
+needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
+
+
+def headless_chromium(*arguments: str) -> list[str]:
+    """The command line of a headless Chromium that draws with software GL and reaches nothing off this machine."""
+    return [CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
+            *OFFLINE, *arguments]
 LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1")
 
 

@@ -17,7 +17,6 @@ import base64
 import io
 import json
 import os
-import shutil
 import socket
 import subprocess
 import sys
@@ -29,7 +28,8 @@ import numpy as np
 import pytest
 import torch
 from conftest import (
-    OFFLINE,
+    headless_chromium,
+    needs_chromium,
     off_machine,
     offline_python,
     page_requests,
@@ -42,9 +42,7 @@ from anseg.pipeline import SegmentConfig, Segmenter, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
 
-CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None)
-pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")]
+pytestmark = [pytest.mark.slow, needs_chromium]
 TOKEN = "anseg-test"
 NOTEBOOK = """\
 import torch
@@ -81,9 +79,8 @@ class Browser:
         profile = folder / "chromium"
         self.net_log = folder / "chromium.netlog.json"
         self.process = subprocess.Popen(
-            [CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-             *OFFLINE, f"--log-net-log={self.net_log}", "--remote-debugging-port=0", f"--user-data-dir={profile}",
-             "--window-size=1400,1200", "about:blank"],
+            headless_chromium(f"--log-net-log={self.net_log}", "--remote-debugging-port=0", f"--user-data-dir={profile}",
+                              "--window-size=1400,1200", "about:blank"),
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         active = profile / "DevToolsActivePort"
         port = _wait(lambda: active.is_file() and active.read_text().split()[:1], 60, "Chromium's DevTools port")[0]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import subprocess
 import sys
 
@@ -12,7 +11,8 @@ import numpy as np
 import pytest
 import torch
 from conftest import (
-    OFFLINE,
+    headless_chromium,
+    needs_chromium,
     off_machine,
     offline_python,
     page_requests,
@@ -23,8 +23,6 @@ from anseg import datasets, viewer
 from anseg.pipeline import SegmentConfig, segment
 from anseg.train import TrainConfig, fit
 from anseg.viz import palette
-
-CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None)
 
 
 @pytest.fixture(scope="module")
@@ -88,9 +86,8 @@ def _screenshot(path, name: str, folder):
 
     out = screenshot_folder(folder)
     net_log = folder / f"{name}.netlog.json"
-    subprocess.run([CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-                    *OFFLINE, f"--log-net-log={net_log}", "--virtual-time-budget=8000", "--window-size=1200,800",
-                    f"--screenshot={out / name}", path.as_uri()], capture_output=True, timeout=120, check=True)
+    subprocess.run(headless_chromium(f"--log-net-log={net_log}", "--virtual-time-budget=8000", "--window-size=1200,800",
+                                     f"--screenshot={out / name}", path.as_uri()), capture_output=True, timeout=120, check=True)
     assert not off_machine(page_requests(net_log, "file://")), "the page asked for something off this machine"
     return np.asarray(Image.open(out / name).convert("RGB")).astype(int)
 
@@ -104,13 +101,13 @@ def _assert_drawn_in(picture: np.ndarray, labels: np.ndarray, n_names: int):
     assert max(hits) > 200, f"no label colour drawn: {hits}"
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
+@needs_chromium
 def test_a_browser_draws_the_mesh_in_the_label_colours(page, tmp_path):
     path, result, names = page
     _assert_drawn_in(_screenshot(path, "viewer.png", tmp_path), result.labels, len(names))
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
+@needs_chromium
 def test_a_browser_draws_a_repaired_stl_scan_from_the_command_line(scan_page, tmp_path):
     path, labels, names = scan_page
     assert "anseg-legend" in path.read_text()
