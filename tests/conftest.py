@@ -47,7 +47,8 @@ def screenshot_folder(default: Path) -> Path:
 # off, so that what page_requests finds in the net log is the page's doing
 OFFLINE = ["--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE localhost, EXCLUDE 127.0.0.1",
            "--disable-background-networking", "--disable-features=AutofillServerCommunication"]
-CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None)
+LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1")
+CHROMIUM = next(filter(None, map(shutil.which, ("chromium", "chromium-browser", "google-chrome"))), None)
 needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
 
 
@@ -55,7 +56,6 @@ def headless_chromium(*arguments: str) -> list[str]:
     """The command line of a headless Chromium that draws with software GL and reaches nothing off this machine."""
     return [CHROMIUM, "--headless=new", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
             *OFFLINE, *arguments]
-LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1")
 
 
 def page_requests(net_log: Path, site: str) -> list[str]:
