@@ -33,6 +33,9 @@ REPAIR_HINT = "anseg.repair(mesh)"
 DEGENERATE_EPS = 1e-10
 # repair refuses to drop more than this share of the faces (see repair)
 REPAIR_MAX_DROP = 0.5
+# the largest coordinate magnitude accepted: float32's largest finite value, so a file in any format can hold the
+# mesh; a product of four coordinate differences (an area squared) stays finite in float64 below it
+MAX_COORDINATE = float(np.finfo(np.float32).max)
 
 
 class Mesh:
@@ -258,7 +261,8 @@ class Mesh:
     def validate(self) -> "Mesh":
         """Raise MeshError unless the mesh is usable; return self for chaining.
 
-        Checks, in order: not empty, finite coordinates, face indices in
+        Checks, in order: not empty, finite coordinates no larger than
+        :data:`MAX_COORDINATE` (beyond it the geometry overflows), face indices in
         range, no degenerate faces (:func:`degenerate_faces`: each face judged
         by its own edges), no repeated faces, no non-manifold edges,
         no non-manifold vertices. A mesh is treated as immutable (its tables
@@ -272,6 +276,10 @@ class Mesh:
         bad = ~np.isfinite(self.vertices).all(axis=1)
         if bad.any():
             raise MeshError(f"{int(bad.sum())} vertices have NaN or infinite coordinates (first: {int(np.flatnonzero(bad)[0])})")
+        huge = (np.abs(self.vertices) > MAX_COORDINATE).any(axis=1)
+        if huge.any():
+            raise MeshError(f"{int(huge.sum())} vertices have coordinates beyond {MAX_COORDINATE:.1e} in magnitude "
+                            f"(first: {int(np.flatnonzero(huge)[0])}); the file is damaged or its units are wrong")
         if self.faces.min() < 0 or self.faces.max() >= self.n_vertices:
             raise MeshError(
                 f"faces index missing vertices: indices span [{self.faces.min()}, {self.faces.max()}] "
@@ -359,7 +367,7 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     another mesh, not this one repaired. Then every sheet of faces
     around a non-manifold edge or vertex gets its own copies of the vertices
     there (:attr:`Mesh.corner_fans`), so that the result is manifold and the
-    faces keep their order. Non-finite coordinates of used vertices and bad
+    faces keep their order. Non-finite or oversized coordinates of used vertices and bad
     indices are not repaired.
     """
     if mesh.n_faces == 0:
@@ -369,6 +377,8 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     used, faces = np.unique(mesh.faces, return_inverse=True)  # sorted: the vertex order stays
     if not np.isfinite(mesh.vertices[used]).all():
         raise MeshError("cannot repair NaN or infinite coordinates")
+    if (np.abs(mesh.vertices[used]) > MAX_COORDINATE).any():
+        raise MeshError(f"cannot repair coordinates beyond {MAX_COORDINATE:.1e} in magnitude")
     vertices, faces = merge_identical_vertices(mesh.vertices[used], faces.reshape(-1, 3))
     merged = Mesh(vertices, faces)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from conftest import grid_mesh
 
-from anseg.mesh import Mesh, MeshError, repair
+from anseg.mesh import MAX_COORDINATE, Mesh, MeshError, repair
 from anseg.mesh_files import load_mesh, save_mesh
 
 TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
@@ -218,6 +220,7 @@ def test_repair_drops_an_unreferenced_far_vertex_and_keeps_every_face():
         (np.zeros((0, 3)), np.zeros((0, 3), int), "empty"),
         (np.where(np.arange(12).reshape(4, 3) == 4, np.nan, TETRA_V), TETRA_F, "NaN or infinite"),
         (np.where(np.arange(12).reshape(4, 3) == 4, np.inf, TETRA_V), TETRA_F, "NaN or infinite"),
+        (np.where(np.arange(12).reshape(4, 3) == 4, -1e300, TETRA_V), TETRA_F, "beyond 3.4e\\+38"),
         (TETRA_V, np.vstack([TETRA_F[:3], [1, 2, 7]]), "index missing vertices"),
         (np.vstack([TETRA_V, [2, 0, 0]]), np.vstack([TETRA_F, [0, 1, 4]]), "zero-area"),
         (np.vstack([TETRA_V, [1, 1, 1]]), np.vstack([TETRA_F, [1, 2, 4]]), "non-manifold"),
@@ -226,6 +229,28 @@ def test_repair_drops_an_unreferenced_far_vertex_and_keeps_every_face():
 def test_validate_errors(vertices, faces, message):
     with pytest.raises(MeshError, match=message):
         Mesh(vertices, faces).validate()
+
+
+def test_coordinates_up_to_the_limit_are_checked_without_overflow_and_beyond_it_refused():
+    """A flipped exponent byte in a binary file gives coordinates like 1e300, whose squares overflow float64."""
+    largest = TETRA_V / np.abs(TETRA_V).max() * MAX_COORDINATE
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert Mesh(largest, TETRA_F).validate().n_faces == 4
+        assert repair(Mesh(largest, TETRA_F))[0].n_faces == 4
+        beyond = largest.copy()
+        beyond[1, 2] = np.nextafter(-MAX_COORDINATE, -np.inf)
+        with pytest.raises(MeshError, match="1 vertices have coordinates beyond"):
+            Mesh(beyond, TETRA_F).validate()
+        with pytest.raises(MeshError, match="cannot repair coordinates beyond"):
+            repair(Mesh(beyond, TETRA_F))
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_a_file_with_an_overflowing_coordinate_gives_a_mesh_error(tmp_path):
+    path = write_off(tmp_path / "huge.off", np.where(np.arange(12).reshape(4, 3) == 4, 1e300, TETRA_V), TETRA_F)
+    with pytest.raises(MeshError, match=r"huge\.off: 1 vertices have coordinates beyond"):
+        load_mesh(path)
 
 
 def test_load_reports_file_and_problem(tmp_path):

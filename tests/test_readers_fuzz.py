@@ -53,6 +53,7 @@ def mutate(data: bytes, mutation) -> bytes:
     return data[:cut] + chunk + data[cut:]
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # an overflow on the way is a failure, not a warning
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(name=st.sampled_from(list(FORMATS)), mutation=mutations)
 def test_damaged_files_give_a_mesh_error_or_a_valid_mesh(tmp_path, originals, name, mutation):
