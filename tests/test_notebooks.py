@@ -130,6 +130,14 @@ def test_the_papers_method_runs_the_cross_of_fig11_through_its_choice():
     assert len(planned) < len(planned_experiments("real", only=["fig11"], splits=[0]))  # the default runs the whole grid
 
 
+def test_readme_is_a_short_entry_point_with_the_two_commands_first():
+    """The README points to docs/ for the rest: under 200 lines, both commands in its first 40."""
+    lines = (REPO / "README.md").read_text().splitlines()
+    assert len(lines) < 200, f"README.md has {len(lines)} lines; move the detail to docs/"
+    first = "\n".join(lines[:40])
+    assert "make reproduce" in first and "make test" in first
+
+
 def test_readme_headline_is_the_committed_results():
     if not (REPO / "results" / "table4_ablation.csv").is_file():
         pytest.skip("no real-run results committed yet (results/table4_ablation.csv)")
