@@ -72,8 +72,8 @@ class Claim:
     also_reads: tuple[str, ...] = ()  # configurations it reads beside its notebooks' own (the paper's, in a column)
 
 
-def _judged(evidence: str, *effects: Effect) -> Verdict:
-    return Verdict(evidence, combined(*effects))
+def _judged(evidence: str, *effects: Effect, reads: tuple[str, ...] | None = None) -> Verdict:
+    return Verdict(evidence, combined(*effects), reads)
 
 
 def _csv(results: Path, name: str, **options):
@@ -204,8 +204,7 @@ def _on_the_papers_method(results: Path, name: str, source: str, read) -> Verdic
     departs from the paper's method in ways (supervised attention, the input
     level's vote) that settle such claims by construction.
     """
-    record = results / f"{source}.json"
-    own = (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None
+    own = _record_configuration(results, source)
     if own == PLAIN_READING:
         text, effects = read(_csv(results, name), True)
         return Verdict(text, combined(*effects), (own,))
@@ -217,7 +216,7 @@ def _on_the_papers_method(results: Path, name: str, source: str, read) -> Verdic
         return Verdict(f"the paper's method as written ({PLAIN_READING} configuration) not run here yet; {ours}, "
                        f"not judged: {text}", UNTESTED, (own,) if own else ())
     return Verdict(f"the paper's configuration: {paper_text}; {ours}, not judged: {text}", combined(*paper_effects),
-                   (PLAIN_READING, own) if own else (PLAIN_READING,))
+                   _paper_judged(results, source))
 
 
 def _ablation_order(results: Path) -> Verdict:
@@ -294,7 +293,8 @@ def _attention_at_junctions(results: Path) -> Verdict:
     meshes = _fig4_test_meshes(results)
     paper, ours = fig4_effects(meshes, PLAIN_READING)[0], fig4_effects(meshes, "ours")[0]
     return _judged(f"the paper's configuration (unsupervised attention): {paper}; ours (supervised), not judged: "
-                   f"{ours.mean:+.2f} [{ours.low:+.2f}, {ours.high:+.2f}]; the paper gives no number", paper)
+                   f"{ours.mean:+.2f} [{ours.low:+.2f}, {ours.high:+.2f}]; the paper gives no number", paper,
+                   reads=_paper_judged(results, "fig4_attention"))
 
 
 def _labels_survive(results: Path) -> Verdict:
@@ -308,7 +308,8 @@ def _labels_survive(results: Path) -> Verdict:
     meshes = _fig4_test_meshes(results)
     paper, ours = fig4_effects(meshes, PLAIN_READING)[1], fig4_effects(meshes, "ours")[1]
     return _judged(f"labels kept at level {meshes.level.max()} and back, the paper's configuration: {paper}; ours, not "
-                   f"judged: {ours.mean:+.2f} [{ours.low:+.2f}, {ours.high:+.2f}]; the paper gives no number", paper)
+                   f"judged: {ours.mean:+.2f} [{ours.low:+.2f}, {ours.high:+.2f}]; the paper gives no number", paper,
+                   reads=_paper_judged(results, "fig4_attention"))
 
 
 @dataclass(frozen=True)
@@ -502,12 +503,23 @@ CLAIMS = [
 ]
 
 
+def _record_configuration(results: Path, source: str) -> str | None:
+    """The configuration a notebook's record names ("not recorded" for a record from before; None when there is none)."""
+    record = results / f"{source}.json"
+    return (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None
+
+
+def _paper_judged(results: Path, source: str) -> tuple[str, ...]:
+    """A row judged on the paper's configuration names it first, then the notebook's own, shown beside it."""
+    own = _record_configuration(results, source)
+    return (PLAIN_READING,) + ((own,) if own and own != PLAIN_READING else ())
+
+
 def _configurations(results: Path, sources: tuple[str, ...], also_reads: tuple[str, ...] = ()) -> str:
     """The named configurations of the runs behind a claim, from its notebooks' records ("" when none is read)."""
     names = []
     for source in sources:
-        record = results / f"{source}.json"
-        name = (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None
+        name = _record_configuration(results, source)
         if name is not None and name not in names:
             names.append(name)
     return ", ".join(names + [name for name in also_reads if names and name not in names])
@@ -574,6 +586,7 @@ def markdown(table) -> str:
              "which the ablation rows are judged on:", "", "| setting | the paper's method | default | what it sets |",
              "|---|---|---|---|"]
     lines += [f"| `{name}` | {_value(paper)} | {_value(ours)} | {what} |" for name, paper, ours, what in departures()]
-    lines += ["", "| claim | the paper | our evidence | configuration | verdict |", "|---|---|---|---|---|"]
+    lines += ["", "| claim | the paper | our evidence | configuration (the judged one first) | verdict |",
+              "|---|---|---|---|---|"]
     lines += [f"| {r.claim} | {r._2} | {r._3} | {r.configuration} | **{r.verdict}** |" for r in table.itertuples()]
     return "\n".join(lines)
