@@ -216,7 +216,7 @@ def _on_the_papers_method(results: Path, name: str, source: str, read) -> Verdic
         return Verdict(f"the paper's method as written ({PLAIN_READING} configuration) not run here yet; {ours}, "
                        f"not judged: {text}", UNTESTED, (own,) if own else ())
     return Verdict(f"the paper's configuration: {paper_text}; {ours}, not judged: {text}", combined(*paper_effects),
-                   _paper_judged(results, source))
+                   _paper_judged(own))
 
 
 def _ablation_order(results: Path) -> Verdict:
@@ -294,7 +294,7 @@ def _attention_at_junctions(results: Path) -> Verdict:
     paper, ours = fig4_effects(meshes, PLAIN_READING)[0], fig4_effects(meshes, "ours")[0]
     return _judged(f"the paper's configuration (unsupervised attention): {paper}; ours (supervised), not judged: "
                    f"{ours.mean:+.2f} [{ours.low:+.2f}, {ours.high:+.2f}]; the paper gives no number", paper,
-                   reads=_paper_judged(results, "fig4_attention"))
+                   reads=_paper_judged(_record_configuration(results, "fig4_attention")))
 
 
 def _labels_survive(results: Path) -> Verdict:
@@ -309,7 +309,7 @@ def _labels_survive(results: Path) -> Verdict:
     paper, ours = fig4_effects(meshes, PLAIN_READING)[1], fig4_effects(meshes, "ours")[1]
     return _judged(f"labels kept at level {meshes.level.max()} and back, the paper's configuration: {paper}; ours, not "
                    f"judged: {ours.mean:+.2f} [{ours.low:+.2f}, {ours.high:+.2f}]; the paper gives no number", paper,
-                   reads=_paper_judged(results, "fig4_attention"))
+                   reads=_paper_judged(_record_configuration(results, "fig4_attention")))
 
 
 @dataclass(frozen=True)
@@ -509,9 +509,8 @@ def _record_configuration(results: Path, source: str) -> str | None:
     return (json.loads(record.read_text()).get("configuration") or "not recorded") if record.is_file() else None
 
 
-def _paper_judged(results: Path, source: str) -> tuple[str, ...]:
-    """A row judged on the paper's configuration names it first, then the notebook's own, shown beside it."""
-    own = _record_configuration(results, source)
+def _paper_judged(own: str | None) -> tuple[str, ...]:
+    """A row judged on the paper's configuration names it first, then the notebook's own (``own``), shown beside it."""
     return (PLAIN_READING,) + ((own,) if own and own != PLAIN_READING else ())
 
 
