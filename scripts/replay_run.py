@@ -71,14 +71,16 @@ def why_not(run: dict) -> str | None:
 
 
 def version_differences(env: dict) -> list[str]:
-    """The recorded library versions that differ from this environment's."""
+    """The recorded library versions and CPU model that differ from this environment's."""
     import numpy
     import sklearn
     import torch
     import trimesh
 
+    from anseg.study.store import cpu_model
+
     here = {"torch": torch.__version__, "numpy": numpy.__version__, "trimesh": trimesh.__version__,
-            "scikit-learn": sklearn.__version__}
+            "scikit-learn": sklearn.__version__, "cpu_model": cpu_model()}
     return [f"{name} {env[name]} recorded, {version} here" for name, version in here.items()
             if env.get(name) not in (None, version)]
 

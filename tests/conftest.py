@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from anseg.mesh import Mesh
+from anseg.study.store import cpu_model
 
 NO_DATA = (
     "real benchmark data absent: set ANSEG_DATA to the folder holding psb_labeled.tar.gz, "
@@ -52,19 +53,11 @@ CHROMIUM = next(filter(None, map(shutil.which, ("chromium", "chromium-browser", 
 needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (Debian: apt-get install chromium)")
 
 
-def _cpu_model() -> str:
-    try:
-        return next(line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
-                    if line.startswith("model name"))
-    except (OSError, StopIteration):
-        return "unknown"
-
-
 # The stored runs and the shipped models were made on AMD EPYC CPUs (AVX-512). Another CPU's float kernels round
 # differently, and the default's weighted collapse turns last-digit differences into other labels (on an Intel Xeon,
 # Vase's first test mesh: 59.69 against the stored 57.56), so bit-for-bit replay is only asserted on the runs' own CPU.
 RUNS_CPU = "AMD EPYC"
-CPU_MODEL = _cpu_model()
+CPU_MODEL = cpu_model()
 on_the_runs_cpu = pytest.mark.skipif(
     RUNS_CPU not in CPU_MODEL,
     reason=f"bit-for-bit replay holds on the stored runs' CPU ({RUNS_CPU}); this is {CPU_MODEL}, whose float kernels "

@@ -10,7 +10,7 @@ import torch
 
 from anseg.pipeline import SegmentConfig
 from anseg.study.runner import train_and_evaluate
-from anseg.study.store import REPO, Experiment, code_revision
+from anseg.study.store import REPO, Experiment, code_revision, cpu_model
 from anseg.train import TrainConfig
 
 spec = importlib.util.spec_from_file_location("replay_run", REPO / "scripts" / "replay_run.py")
@@ -49,9 +49,12 @@ def test_a_sample_spans_the_revisions_and_leaves_out_runs_that_cannot_be_replaye
     assert len(replay_run.sample(runs, 20, seed=0)) == 8  # every replayable run, no more
 
 
-def test_versions_that_differ_are_named():
+def test_versions_and_a_cpu_model_that_differ_are_named():
     assert (replay_run.version_differences({"torch": "0.0.1", "numpy": None})
             == [f"torch 0.0.1 recorded, {torch.__version__} here"])
+    assert replay_run.version_differences({"cpu_model": cpu_model()}) == []
+    assert (replay_run.version_differences({"cpu_model": "Another CPU"})
+            == [f"cpu_model Another CPU recorded, {cpu_model()} here"])
 
 
 @pytest.mark.slow

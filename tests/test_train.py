@@ -133,11 +133,26 @@ def test_experiment_keys_of_committed_results_stay_put():
     assert Experiment("psb", "Human", 1, experiment.segment, experiment.train).key() != experiment.key()
 
 
-def test_trained_on_names_the_gpu_or_the_cpu_count():
+def test_trained_on_names_the_gpu_or_the_cpu_model_and_count():
     from anseg.study.store import trained_on
 
     assert trained_on({"environment": {"cuda": "NVIDIA H100 80GB HBM3", "cpus": 16}}) == "NVIDIA H100 80GB HBM3"
+    assert trained_on({"environment": {"cuda": None, "cpus": 2, "cpu_model": "AMD EPYC 9R14"}}) == "AMD EPYC 9R14, 2 cores"
+    # a record from before the model was kept
     assert trained_on({"environment": {"cuda": None, "cpus": 2}}) == "CPU, 2 cores"
+
+
+def test_the_environment_names_the_cpu_model(monkeypatch, tmp_path):
+    from anseg.study import store
+
+    assert store.environment()["cpu_model"] == store.cpu_model() != ""
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor\t: 0\nmodel name\t: Intel(R) Xeon(R) Processor\nflags\t\t: avx512f\n")
+    real_path = store.Path
+    monkeypatch.setattr(store, "Path", lambda p: cpuinfo if p == "/proc/cpuinfo" else real_path(p))
+    assert store.cpu_model() == "Intel(R) Xeon(R) Processor"
+    monkeypatch.setattr(store, "Path", lambda p: tmp_path / "absent")
+    assert store.cpu_model() == (store.platform.processor() or store.platform.machine())
 
 
 def test_settings_added_later_change_the_key_only_away_from_their_old_value():

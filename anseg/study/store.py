@@ -102,10 +102,27 @@ def environment() -> dict:
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
         "cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
         "torch_kernels": torch.backends.cpu.get_cpu_capability(),  # another instruction set rounds otherwise
+        "cpu_model": cpu_model(),  # so does another CPU with the same instruction set (AMD EPYC, Intel Xeon)
         "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
         **code_revision(), "features": features.fingerprint(),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
+
+
+def cpu_model() -> str:
+    """The CPU's model name, from ``/proc/cpuinfo`` (``platform.processor()`` where that file is absent).
+
+    Two CPUs with the same instruction set can still round a float kernel
+    differently, and the default's weighted collapse turns a last-digit
+    difference into another hierarchy, so a run replays bit for bit only on
+    the CPU model that trained it.
+    """
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        lines = []
+    names = (line.split(":", 1)[1].strip() for line in lines if line.startswith("model name"))
+    return next(names, None) or platform.processor() or platform.machine()
 
 
 def code_revision(root: Path = REPO) -> dict:
@@ -130,9 +147,10 @@ def code_revision(root: Path = REPO) -> dict:
 
 
 def trained_on(result: dict) -> str:
-    """The machine a stored result was trained on: its GPU, else its CPU count (a notebook may read results made elsewhere)."""
+    """The machine a stored result was trained on: its GPU, else its CPU model and count ("CPU" where the record
+    predates the model), since a notebook may read results made elsewhere."""
     env = result["environment"]
-    return env["cuda"] or f"CPU, {env['cpus']} cores"
+    return env["cuda"] or f"{env.get('cpu_model', 'CPU')}, {env['cpus']} cores"
 
 
 class ResultStore:
