@@ -26,6 +26,7 @@ def test_start_reads_the_parameter_cell_and_records_the_run(tmp_path, capsys):
     summary = printed[printed.index("| run record"):]  # a few lines, not the record's JSON
     assert len(summary.splitlines()) == 7 and "`default` (2 epochs, seed 0)" in summary and "{" not in summary
     assert nb.record["environment"]["code_revision"][:12] in summary or "not recorded" in summary
+    assert nb.record["environment"]["cpu_model"] in summary  # the machine row names the CPU model
     # the planned runs are the plan's, not a loop of the notebook's own
     assert nb.planned == notebook_runs("table4_ablation.ipynb", nb.parameters)
     assert {run.row["mode"] for run in nb.planned} == {"nonuniform", "uniform", "none", "none, transformer"}
