@@ -147,6 +147,8 @@ def compare(path: Path, root: str | None, keep: bool) -> dict:
     except (LookupError, RuntimeError) as exc:
         print(f"replay_run: {exc}", file=sys.stderr)
         return {"key": path.stem, "holds": None, "why": str(exc)}
+    from anseg.study.store import trained_on
+
     same = again["key"] == run["key"] and again["accuracy"] == run["accuracy"]
     print(f"{run['dataset']} {run['category']} split {run['split_index']} at {run['environment']['code_revision'][:12]}")
     for metric, value in run["accuracy"].items():
@@ -155,7 +157,18 @@ def compare(path: Path, root: str | None, keep: bool) -> dict:
     print("replay holds" if same else ("replay DIFFERS" + ("" if again["key"] == run["key"] else " (another key)")))
     return {"key": run["key"], "category": run["category"], "split": run["split_index"],
             "revision": run["environment"]["code_revision"][:12], "stored": run["accuracy"]["unit_area"],
-            "replayed": again["accuracy"].get("unit_area"), "holds": same, "why": ""}
+            "replayed": again["accuracy"].get("unit_area"), "trained_on": trained_on(run), "replayed_on": here(),
+            "holds": same, "why": ""}
+
+
+def here() -> str:
+    """This machine, named as a stored run names the one it was trained on."""
+    import torch
+
+    from anseg.study.store import cpu_model, trained_on
+
+    return trained_on({"environment": {"cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+                                       "cpus": os.cpu_count(), "cpu_model": cpu_model()}})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -165,7 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--among", type=Path, default=REPO / "results" / "table1_psb_runs.csv",
                         help="the runs table --sample draws from (default: Table I's)")
     parser.add_argument("--seed", type=int, default=0, help="seed of --sample's draw (default: 0)")
-    parser.add_argument("--csv", type=Path, help="write one line per run: key, revision, stored and replayed accuracy")
+    parser.add_argument("--csv", type=Path, help="write one line per run: key, revision, stored and replayed accuracy, "
+                                                   "the machines of both")
     parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
     parser.add_argument("--keep", action="store_true", help="keep the worktree of the recorded revision")
     args = parser.parse_args(argv)
@@ -183,7 +197,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("give stored results, or --sample N")
     rows = [compare(path, args.data, args.keep) for path in paths]
     if args.csv:
-        columns = ["key", "category", "split", "revision", "stored", "replayed", "holds", "why"]
+        columns = ["key", "category", "split", "revision", "stored", "replayed", "trained_on", "replayed_on", "holds",
+                   "why"]
         with open(args.csv, "w", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=columns)
             writer.writeheader()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import importlib.util
 import json
 
@@ -90,3 +91,18 @@ def test_a_replay_reads_an_empty_feature_cache_of_its_own(tmp_path, monkeypatch)
     (environment,) = [kwargs["env"] for _, kwargs in calls if "env" in kwargs]
     cache = environment["ANSEG_CACHE"]
     assert cache != str(tmp_path / "shared-cache") and cache.startswith(str(tmp_path)) and not list(tmp_path.iterdir())
+
+
+def test_the_csv_names_the_machine_that_trained_and_the_one_that_replayed(tmp_path, monkeypatch, capsys):
+    record = {**_record(cpus=2, cpu_model="Another CPU", torch="0.0.1"), "accuracy": {"unit_area": 0.5},
+              "train_seconds": 1.0}
+    path = tmp_path / "run.json"
+    path.write_text(json.dumps(record))
+    monkeypatch.setattr(replay_run, "replay", lambda run, root, keep: {"key": "k", "accuracy": {"unit_area": 0.25},
+                                                                        "train_seconds": 1.0})
+    table = tmp_path / "replays.csv"
+    assert replay_run.main([str(path), "--csv", str(table)]) == 1
+    assert "cpu_model Another CPU recorded" in capsys.readouterr().err  # said before training
+    (row,) = list(csv.DictReader(table.open()))
+    assert row["trained_on"] == "Another CPU, 2 cores" and row["replayed_on"] == replay_run.here()
+    assert cpu_model() in row["replayed_on"] and row["holds"] == "False" and row["replayed"] == "0.25"
