@@ -199,8 +199,9 @@ def _on_the_papers_method(results: Path, name: str, source: str, read) -> Verdic
     """An ablation claim judged on the runs of the paper's method as written; the notebook's own beside, not judged.
 
     ``read(runs, judged)`` gives the evidence in words (each part's verdict
-    only where ``judged``) and the effects of one table of runs. Without the
-    ``paper`` configuration's runs the claim is not tested: the default
+    only where ``judged``) and the effects of one table of runs. Until all of
+    the ``paper`` configuration's runs are stored the claim is not tested (part
+    of them must not stand for all; the notebook says how many): the default
     departs from the paper's method in ways (supervised attention, the input
     level's vote) that settle such claims by construction.
     """
@@ -213,7 +214,7 @@ def _on_the_papers_method(results: Path, name: str, source: str, read) -> Verdic
     try:
         paper_text, paper_effects = read(_csv(results, papers_method_file(name)), True)
     except MissingResult:
-        return Verdict(f"the paper's method as written ({PLAIN_READING} configuration) not run here yet; {ours}, "
+        return Verdict(f"the paper's method as written ({PLAIN_READING} configuration) not all run here yet; {ours}, "
                        f"not judged: {text}", UNTESTED, (own,) if own else ())
     return Verdict(f"the paper's configuration: {paper_text}; {ours}, not judged: {text}", combined(*paper_effects),
                    _paper_judged(own))
