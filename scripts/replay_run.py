@@ -163,12 +163,9 @@ def compare(path: Path, root: str | None, keep: bool) -> dict:
 
 def here() -> str:
     """This machine, named as a stored run names the one it was trained on."""
-    import torch
+    from anseg.study.store import hardware, trained_on
 
-    from anseg.study.store import cpu_model, trained_on
-
-    return trained_on({"environment": {"cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-                                       "cpus": os.cpu_count(), "cpu_model": cpu_model()}})
+    return trained_on({"environment": hardware()})
 
 
 def main(argv: list[str] | None = None) -> int:

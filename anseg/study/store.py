@@ -100,13 +100,21 @@ def environment() -> dict:
         "python": platform.python_version(), "torch": torch.__version__, "numpy": np.__version__,
         "trimesh": trimesh.__version__, "scikit-learn": sklearn.__version__,
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
-        "cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
+        "torch_threads": torch.get_num_threads(),
         "torch_kernels": torch.backends.cpu.get_cpu_capability(),  # another instruction set rounds otherwise
-        "cpu_model": cpu_model(),  # so does another CPU with the same instruction set (AMD EPYC, Intel Xeon)
-        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-        **code_revision(), "features": features.fingerprint(),
+        **hardware(), **code_revision(), "features": features.fingerprint(),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
+
+
+def hardware() -> dict:
+    """The device this process computes on, as a record keeps it: the CPU count and model, and the GPU (None on CPU).
+
+    The model matters even between CPUs of one instruction set (AMD EPYC,
+    Intel Xeon): see :func:`cpu_model`.
+    """
+    return {"cpus": os.cpu_count(), "cpu_model": cpu_model(),
+            "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None}
 
 
 def cpu_model() -> str:
