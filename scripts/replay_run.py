@@ -2,6 +2,7 @@
 
     python scripts/replay_run.py results/runs/<key>.json [...] [--data DIR] [--keep] [--csv FILE]
     python scripts/replay_run.py --sample 5 [--seed 0] [--among results/table1_psb_runs.csv] [--csv FILE]
+    python scripts/replay_run.py results/superseded/<machine>/<key>.json [...] --retrained results/runs [--csv FILE]
 
 ``--sample N`` draws the runs itself from the keys of a runs table (Table
 I's by default), among those that can be replayed here, one revision after
@@ -18,6 +19,11 @@ the same accuracy (Eq. 5, unit area, and raw area and per face) as the
 stored one, float for float; exit status 0 then, 1 when it differs, 2 when
 the run cannot be replayed here (no revision recorded, uncommitted changes
 at training time, trained on a GPU, or the revision is not in this clone).
+
+``--retrained DIR`` compares instead with a retraining already stored in DIR
+under the same key (one the study's planner made on another machine, say, at
+the same revision), so that a whole table retrained elsewhere is compared
+run by run without training it a third time.
 
 Replay needs the package's dependencies at the versions the record names;
 where they differ, it says so before training, since torch's kernels may
@@ -129,9 +135,21 @@ def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
             shutil.rmtree(worktree.parent, ignore_errors=True)
 
 
-def compare(path: Path, root: str | None, keep: bool) -> dict:
-    """Replay the run stored at ``path`` and print the comparison; its line for --csv (``holds``: True, False, or
-    None where it cannot be replayed here, with the reason)."""
+def retrained_record(run: dict, folder: Path) -> dict:
+    """The retraining of ``run`` stored in ``folder`` under its key, at its revision, as ``replay`` gives one."""
+    path = folder / f"{run['key']}.json"
+    try:
+        again = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise LookupError(f"no retraining of {run['key']} in {folder}: {exc}") from exc
+    if again.get("environment", {}).get("code_revision") != run["environment"]["code_revision"]:
+        raise LookupError(f"{path} was trained at another revision, so it does not replay {run['key']}")
+    return again
+
+
+def compare(path: Path, root: str | None, keep: bool, retrained: Path | None = None) -> dict:
+    """Replay the run stored at ``path`` (or read its retraining from ``retrained``) and print the comparison; its
+    line for --csv (``holds``: True, False, or None where it cannot be replayed here, with the reason)."""
     try:
         run = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
@@ -140,10 +158,11 @@ def compare(path: Path, root: str | None, keep: bool) -> dict:
     if reason := why_not(run):
         print(f"replay_run: cannot replay {path.name}: {reason}", file=sys.stderr)
         return {"key": path.stem, "holds": None, "why": reason}
-    for difference in version_differences(run["environment"]):
-        print(f"replay_run: warning: {difference}", file=sys.stderr)
+    if retrained is None:
+        for difference in version_differences(run["environment"]):
+            print(f"replay_run: warning: {difference}", file=sys.stderr)
     try:
-        again = replay(run, root, keep)
+        again = retrained_record(run, retrained) if retrained else replay(run, root, keep)
     except (LookupError, RuntimeError) as exc:
         print(f"replay_run: {exc}", file=sys.stderr)
         return {"key": path.stem, "holds": None, "why": str(exc)}
@@ -157,7 +176,8 @@ def compare(path: Path, root: str | None, keep: bool) -> dict:
     print("replay holds" if same else ("replay DIFFERS" + ("" if again["key"] == run["key"] else " (another key)")))
     return {"key": run["key"], "category": run["category"], "split": run["split_index"],
             "revision": run["environment"]["code_revision"][:12], "stored": run["accuracy"]["unit_area"],
-            "replayed": again["accuracy"].get("unit_area"), "trained_on": trained_on(run), "replayed_on": here(),
+            "replayed": again["accuracy"].get("unit_area"), "trained_on": trained_on(run),
+            "replayed_on": trained_on(again) if retrained else here(),
             "holds": same, "why": ""}
 
 
@@ -179,6 +199,8 @@ def main(argv: list[str] | None = None) -> int:
                                                    "the machines of both")
     parser.add_argument("--data", help="data root (default: $ANSEG_DATA)")
     parser.add_argument("--keep", action="store_true", help="keep the worktree of the recorded revision")
+    parser.add_argument("--retrained", type=Path, metavar="DIR",
+                        help="compare with the retraining stored in DIR under each run's key instead of training")
     args = parser.parse_args(argv)
     paths = list(args.results)
     if args.sample is not None:
@@ -192,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
         paths += [store / f"{key}.json" for key in sample(runs, args.sample, args.seed)]
     if not paths:
         parser.error("give stored results, or --sample N")
-    rows = [compare(path, args.data, args.keep) for path in paths]
+    rows = [compare(path, args.data, args.keep, args.retrained) for path in paths]
     if args.csv:
         columns = ["key", "category", "split", "revision", "stored", "replayed", "trained_on", "replayed_on", "holds",
                    "why"]

@@ -106,3 +106,23 @@ def test_the_csv_names_the_machine_that_trained_and_the_one_that_replayed(tmp_pa
     (row,) = list(csv.DictReader(table.open()))
     assert row["trained_on"] == "Another CPU, 2 cores" and row["replayed_on"] == replay_run.here()
     assert cpu_model() in row["replayed_on"] and row["holds"] == "False" and row["replayed"] == "0.25"
+
+
+def test_a_retraining_stored_elsewhere_is_compared_without_training(tmp_path, monkeypatch):
+    monkeypatch.setattr(replay_run, "replay", lambda *args: pytest.fail("--retrained must not train"))
+    stored, retrained = tmp_path / "stored", tmp_path / "retrained"
+    stored.mkdir(), retrained.mkdir()
+    record = {**_record(cpus=2, cpu_model="One CPU"), "accuracy": {"unit_area": 0.5}, "train_seconds": 1.0}
+    (stored / "k.json").write_text(json.dumps(record))
+    table = tmp_path / "replays.csv"
+    arguments = [str(stored / "k.json"), "--retrained", str(retrained), "--csv", str(table)]
+    assert replay_run.main(arguments) == 2  # no retraining stored under the key
+    again = {**_record(cpus=2, cpu_model="Another CPU"), "accuracy": {"unit_area": 0.25}, "train_seconds": 2.0}
+    (retrained / "k.json").write_text(json.dumps(again))
+    assert replay_run.main(arguments) == 1
+    (row,) = list(csv.DictReader(table.open()))
+    assert (row["trained_on"], row["replayed_on"], row["replayed"]) == ("One CPU, 2 cores", "Another CPU, 2 cores", "0.25")
+    (retrained / "k.json").write_text(json.dumps({**again, **_record(code_revision="b" * 40)}))
+    assert replay_run.main(arguments) == 2  # trained at another revision: not a replay
+    (retrained / "k.json").write_text(json.dumps({**record, "environment": {**record["environment"], "cpu_model": "X"}}))
+    assert replay_run.main(arguments) == 0
