@@ -3,11 +3,13 @@
     python scripts/replay_run.py results/runs/<key>.json [...] [--data DIR] [--keep] [--csv FILE]
     python scripts/replay_run.py --sample 5 [--seed 0] [--among results/table1_psb_runs.csv] [--csv FILE]
     python scripts/replay_run.py results/superseded/<machine>/<key>.json [...] --retrained results/runs [--csv FILE]
+    python scripts/replay_run.py --sample 2 --among A.csv --among B.csv --at REV --at REV [...] [--csv FILE]
 
 ``--sample N`` draws the runs itself from the keys of a runs table (Table
-I's by default), among those that can be replayed here, one revision after
-another (a revision's runs drawn by ``--seed``) so that the sample spans
-the revisions the table read; ``--csv`` keeps one line per replay.
+I's by default; N from each table where ``--among`` is given more than once),
+among those that can be replayed here, one revision after another (a
+revision's runs drawn by ``--seed``) so that the sample spans the revisions
+the table read; ``--csv`` keeps one line per replay.
 
 The run's recorded revision is checked out into a temporary git worktree and
 the experiment (the recorded data set, category, split and settings) is
@@ -24,6 +26,13 @@ at training time, trained on a GPU, or the revision is not in this clone).
 under the same key (one the study's planner made on another machine, say, at
 the same revision), so that a whole table retrained elsewhere is compared
 run by run without training it a third time.
+
+``--at REV`` (given once per revision) measures the drift between code
+revisions instead: each run is trained at every REV, on this machine, and
+the accuracies are set side by side; revisions whose package folder is the
+same git tree train the same code, so each tree is trained once and its
+number stands for all of them. Exit status 0 when every run gives the same
+accuracy at every revision, 1 when some differ, 2 when one cannot be trained.
 
 Replay needs the package's dependencies at the versions the record names;
 where they differ, it says so before training, since torch's kernels may
@@ -108,9 +117,10 @@ def sample(runs: dict[str, dict], n: int, seed: int) -> list[str]:
     return drawn
 
 
-def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
-    """Retrain ``run`` at its recorded revision; the new run's key, accuracy and training seconds."""
-    revision = run["environment"]["code_revision"]
+def replay(run: dict, root: str | None = None, keep: bool = False, revision: str | None = None) -> dict:
+    """Retrain ``run`` at its recorded revision (or at ``revision``); the new run's key, accuracy and training
+    seconds."""
+    revision = revision or run["environment"]["code_revision"]
     worktree = Path(tempfile.mkdtemp(prefix="anseg-replay-")) / "tree"
     added = subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(worktree), revision],
                            capture_output=True, text=True)
@@ -133,6 +143,52 @@ def replay(run: dict, root: str | None = None, keep: bool = False) -> dict:
         if not keep:
             subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(worktree)], capture_output=True)
             shutil.rmtree(worktree.parent, ignore_errors=True)
+
+
+def code_tree(revision: str) -> tuple[str, str]:
+    """``revision`` in full and the git tree of its package folder (two revisions with one tree train the same code)."""
+    trees = [subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify", "--quiet", f"{revision}^{{commit}}{path}"],
+                            capture_output=True, text=True) for path in ("", ":anseg")]
+    if any(done.returncode != 0 for done in trees):
+        raise LookupError(f"revision {revision} is not in this clone")
+    return trees[0].stdout.strip(), trees[1].stdout.strip()
+
+
+def across(path: Path, root: str | None, keep: bool, revisions: list[str]) -> list[dict]:
+    """Train the run stored at ``path`` at each of ``revisions`` here (once per package tree) and print the
+    accuracies side by side; one line per revision for --csv (``holds``: the same accuracy at every revision)."""
+    try:
+        run = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        print(f"replay_run: cannot read {path}: {exc}", file=sys.stderr)
+        return [{"key": path.stem, "holds": None, "why": str(exc)}]
+    if reason := why_not(run):
+        print(f"replay_run: cannot train {path.name} again: {reason}", file=sys.stderr)
+        return [{"key": path.stem, "holds": None, "why": reason}]
+    from anseg.study.store import trained_on
+
+    by_tree: dict[str, dict] = {}
+    rows = []
+    print(f"{run['dataset']} {run['category']} split {run['split_index']} (stored {run['accuracy']['unit_area']!r}, "
+          f"at {run['environment']['code_revision'][:12]})")
+    for wanted in revisions:
+        try:
+            revision, tree = code_tree(wanted)
+            if tree not in by_tree:
+                by_tree[tree] = replay(run, root, keep, revision)
+        except (LookupError, RuntimeError) as exc:
+            print(f"replay_run: {exc}", file=sys.stderr)
+            return [{"key": run["key"], "holds": None, "why": str(exc)}]
+        again = by_tree[tree]
+        print(f"  at {revision[:12]} (package tree {tree[:12]}): {again['accuracy'].get('unit_area')!r}"
+              + ("" if again["key"] == run["key"] else " (another key)"))
+        rows.append({"key": run["key"], "category": run["category"], "split": run["split_index"],
+                     "revision": run["environment"]["code_revision"][:12], "stored": run["accuracy"]["unit_area"],
+                     "trained_on": trained_on(run), "at": revision[:12], "code_tree": tree[:12],
+                     "replayed": again["accuracy"].get("unit_area"), "replayed_on": here(), "why": ""})
+    same = len({(again["key"], json.dumps(again["accuracy"], sort_keys=True)) for again in by_tree.values()}) == 1
+    print("the same at every revision" if same else "the revisions DIFFER")
+    return [{**row, "holds": same} for row in rows]
 
 
 def retrained_record(run: dict, folder: Path) -> dict:
@@ -192,8 +248,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("results", type=Path, nargs="*", help="stored results, results/runs/<key>.json")
     parser.add_argument("--sample", type=int, metavar="N", help="replay N runs drawn from --among's keys instead")
-    parser.add_argument("--among", type=Path, default=REPO / "results" / "table1_psb_runs.csv",
-                        help="the runs table --sample draws from (default: Table I's)")
+    parser.add_argument("--among", type=Path, action="append",
+                        help="a runs table --sample draws from, N runs from each (default: Table I's)")
     parser.add_argument("--seed", type=int, default=0, help="seed of --sample's draw (default: 0)")
     parser.add_argument("--csv", type=Path, help="write one line per run: key, revision, stored and replayed accuracy, "
                                                    "the machines of both")
@@ -201,23 +257,34 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--keep", action="store_true", help="keep the worktree of the recorded revision")
     parser.add_argument("--retrained", type=Path, metavar="DIR",
                         help="compare with the retraining stored in DIR under each run's key instead of training")
+    parser.add_argument("--at", action="append", metavar="REV",
+                        help="train each run at REV here instead (give it once per revision) to measure their drift")
     args = parser.parse_args(argv)
+    if args.at and args.retrained:
+        parser.error("--at trains at other revisions; --retrained reads a retraining: give one of them")
     paths = list(args.results)
     if args.sample is not None:
-        try:
-            with open(args.among, newline="") as handle:
-                keys = sorted({row["key"] for row in csv.DictReader(handle)})
-        except (OSError, KeyError) as exc:
-            parser.error(f"--among {args.among}: no runs table with a key column ({exc})")
         store = REPO / "results" / "runs"
-        runs = {key: json.loads((store / f"{key}.json").read_text()) for key in keys if (store / f"{key}.json").is_file()}
-        paths += [store / f"{key}.json" for key in sample(runs, args.sample, args.seed)]
+        for table in args.among or [REPO / "results" / "table1_psb_runs.csv"]:
+            try:
+                with open(table, newline="") as handle:
+                    keys = sorted({row["key"] for row in csv.DictReader(handle)})
+            except (OSError, KeyError) as exc:
+                parser.error(f"--among {table}: no runs table with a key column ({exc})")
+            runs = {key: json.loads((store / f"{key}.json").read_text()) for key in keys
+                    if (store / f"{key}.json").is_file() and store / f"{key}.json" not in paths}
+            paths += [store / f"{key}.json" for key in sample(runs, args.sample, args.seed)]
     if not paths:
         parser.error("give stored results, or --sample N")
-    rows = [compare(path, args.data, args.keep, args.retrained) for path in paths]
+    if args.at:
+        rows = [row for path in paths for row in across(path, args.data, args.keep, args.at)]
+    else:
+        rows = [compare(path, args.data, args.keep, args.retrained) for path in paths]
     if args.csv:
         columns = ["key", "category", "split", "revision", "stored", "replayed", "trained_on", "replayed_on", "holds",
                    "why"]
+        if args.at:
+            columns[5:5] = ["at", "code_tree"]
         with open(args.csv, "w", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=columns)
             writer.writeheader()
