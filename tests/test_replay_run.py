@@ -126,3 +126,31 @@ def test_a_retraining_stored_elsewhere_is_compared_without_training(tmp_path, mo
     assert replay_run.main(arguments) == 2  # trained at another revision: not a replay
     (retrained / "k.json").write_text(json.dumps({**record, "environment": {**record["environment"], "cpu_model": "X"}}))
     assert replay_run.main(arguments) == 0
+
+
+def test_at_trains_once_per_package_tree_and_sets_the_revisions_side_by_side(tmp_path, monkeypatch):
+    trees = {"r1": "t1", "r2": "t1", "r3": "t2"}  # r1 and r2 hold the same package folder
+    monkeypatch.setattr(replay_run, "code_tree", lambda revision: (revision * 20, trees[revision]))
+    trained = []
+
+    def fake_replay(run, root, keep, revision):
+        trained.append(revision[:2])
+        return {"key": "k", "accuracy": {"unit_area": 0.5 if revision.startswith("r1") else accuracy_r3},
+                "train_seconds": 1.0}
+
+    monkeypatch.setattr(replay_run, "replay", fake_replay)
+    path = tmp_path / "run.json"
+    path.write_text(json.dumps({**_record(cpus=2), "accuracy": {"unit_area": 0.4}, "train_seconds": 1.0}))
+    table = tmp_path / "drift.csv"
+    arguments = [str(path), "--at", "r1", "--at", "r2", "--at", "r3", "--csv", str(table)]
+    accuracy_r3 = 0.5
+    assert replay_run.main(arguments) == 0 and trained == ["r1", "r3"]
+    rows = list(csv.DictReader(table.open()))
+    assert [(row["at"][:2], row["code_tree"], row["replayed"], row["stored"]) for row in rows] == [
+        ("r1", "t1", "0.5", "0.4"), ("r2", "t1", "0.5", "0.4"), ("r3", "t2", "0.5", "0.4")]
+    accuracy_r3 = 0.25
+    assert replay_run.main(arguments) == 1  # the revisions differ
+    monkeypatch.setattr(replay_run, "code_tree", lambda revision: (_ for _ in ()).throw(LookupError("not here")))
+    assert replay_run.main(arguments) == 2
+    with pytest.raises(SystemExit):  # one of --at and --retrained
+        replay_run.main([str(path), "--at", "r1", "--retrained", str(tmp_path)])

@@ -27,6 +27,27 @@ def test_arms_of_one_revision_say_nothing_and_mixed_ones_are_named(tmp_path):
     assert "a: 1111111, 2222222" in sentence and "b: 1111111, 3333333" in sentence and "not measured" in sentence
 
 
+def store_drift(folder, accuracy_at: dict, machine="Some CPU, 2 cores") -> None:
+    """``results/replay/revision_drift.csv`` with run k1 trained at each revision of ``accuracy_at``."""
+    (folder / "replay").mkdir(parents=True, exist_ok=True)
+    pd.DataFrame([{"key": "k1", "at": f"{at}00000", "replayed": value, "replayed_on": machine}
+                  for at, value in accuracy_at.items()]).to_csv(folder / revisions.DRIFT, index=False)
+
+
+def test_the_drift_measured_between_the_mixed_revisions_is_shown_beside_them(tmp_path):
+    runs = pd.DataFrame({"mode": ["a", "b"], "key": ["k1", "k2"]})
+    store_runs(tmp_path, {"k1": "1111111aaa", "k2": "2222222bbb"})
+    store_drift(tmp_path, {"1111111": 0.9})
+    assert "not measured (no run of results/replay/revision_drift.csv was trained at 2222222)" in revisions.mix(
+        runs, "mode", tmp_path)
+    store_drift(tmp_path, {"1111111": 0.9, "2222222": 0.9})
+    assert revisions.mix(runs, "mode", tmp_path).endswith(
+        "the 1 runs of results/replay/revision_drift.csv trained at each of them on one machine (Some CPU, 2 cores) "
+        "gave the same accuracy at every one, to the last digit")
+    store_drift(tmp_path, {"1111111": 0.9, "2222222": 0.8875})
+    assert "moved by up to 1.25 points between them (mean 1.25; unit area)" in revisions.mix(runs, "mode", tmp_path)
+
+
 PAIRED = {"Downsampling order": ("table4_ablation_runs.csv", "mode"),
           "All four feature groups": ("fig12_features.csv", "features"),
           "More cycles help": ("fig11_cycles_ratio.csv", "cycles")}

@@ -5,8 +5,12 @@ a difference of code as well: moving the code has moved single categories
 by up to 0.8 points, the size of several effects the study judges. So a
 table that pairs runs says which revisions each arm read (:func:`mix`), and
 the claims ledger sets that sentence beside every paired verdict whose arms
-do not share their revisions; the drift between those revisions is not
-measured here until the arms are retrained at one revision or replayed.
+do not share their revisions, with the drift measured between them:
+``scripts/replay_run.py --at`` trains a sample of stored runs at each of those
+revisions on one machine and keeps the accuracies in ``DRIFT``, so the
+sentence says how far the same runs moved from one revision to another (on
+one machine, since another CPU moves a run by itself), or that this was not
+measured.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from collections import Counter
 from pathlib import Path
 
 SHOWN = 4  # arms named one by one in a sentence; a grid's others are counted
+DRIFT = "replay/revision_drift.csv"  # under results/: runs trained at several revisions, one line per revision
 
 
 def revision(result: dict) -> str:
@@ -53,4 +58,32 @@ def mix(runs, arm: str, results: Path) -> str | None:
     if len(others) > SHOWN:
         listed.append(f"{len(others) - SHOWN} more arms")
     return (f"the arms read runs of different code revisions ({'; '.join(listed)}); "
-            "the drift between them is not measured")
+            + drift(set().union(*by_arm.values()), results))
+
+
+def drift(found: set[str], results: Path) -> str:
+    """How far the runs of ``DRIFT`` moved between the revisions ``found`` (short, as :func:`revision` gives them).
+
+    Reads the runs trained at every one of those revisions on one machine;
+    a run's drift is its largest minus its smallest accuracy over them (unit
+    area, points). Says "not measured" where no run was trained at all of them.
+    """
+    import pandas as pd
+
+    path = Path(results) / DRIFT
+    table = pd.read_csv(path, dtype={"at": str}) if path.is_file() else pd.DataFrame(columns=["at"])
+    table = table.assign(at=table["at"].str[:7])
+    absent = sorted(found - set(table["at"]))
+    if absent:
+        return f"the drift between them is not measured (no run of results/{DRIFT} was trained at {', '.join(absent)})"
+    wide = table[table["at"].isin(found)].pivot_table(index=["key", "replayed_on"], columns="at", values="replayed",
+                                                     aggfunc="first").dropna()
+    if wide.empty:
+        return f"the drift between them is not measured (no run of results/{DRIFT} was trained at all of them)"
+    moved = (wide.max(axis=1) - wide.min(axis=1)) * 100
+    machines = sorted(set(wide.index.get_level_values("replayed_on")))
+    measured = (f"the {len(wide)} runs of results/{DRIFT} trained at each of them on one machine"
+                f"{' each' if len(machines) > 1 else ''} ({' and '.join(machines)}) ")
+    if (moved == 0).all():
+        return measured + "gave the same accuracy at every one, to the last digit"
+    return measured + f"moved by up to {moved.max():.2f} points between them (mean {moved.mean():.2f}; unit area)"
