@@ -145,6 +145,19 @@ def replay(run: dict, root: str | None = None, keep: bool = False, revision: str
             shutil.rmtree(worktree.parent, ignore_errors=True)
 
 
+def stored(path: Path) -> tuple[dict | None, dict | None]:
+    """The run stored at ``path`` if it can be trained again here, else None and its --csv line saying why not."""
+    try:
+        run = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        print(f"replay_run: cannot read {path}: {exc}", file=sys.stderr)
+        return None, {"key": path.stem, "holds": None, "why": str(exc)}
+    if reason := why_not(run):
+        print(f"replay_run: cannot replay {path.name}: {reason}", file=sys.stderr)
+        return None, {"key": path.stem, "holds": None, "why": reason}
+    return run, None
+
+
 def code_tree(revision: str) -> tuple[str, str]:
     """``revision`` in full and the git tree of its package folder (two revisions with one tree train the same code)."""
     trees = [subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify", "--quiet", f"{revision}^{{commit}}{path}"],
@@ -157,14 +170,9 @@ def code_tree(revision: str) -> tuple[str, str]:
 def across(path: Path, root: str | None, keep: bool, revisions: list[str]) -> list[dict]:
     """Train the run stored at ``path`` at each of ``revisions`` here (once per package tree) and print the
     accuracies side by side; one line per revision for --csv (``holds``: the same accuracy at every revision)."""
-    try:
-        run = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        print(f"replay_run: cannot read {path}: {exc}", file=sys.stderr)
-        return [{"key": path.stem, "holds": None, "why": str(exc)}]
-    if reason := why_not(run):
-        print(f"replay_run: cannot train {path.name} again: {reason}", file=sys.stderr)
-        return [{"key": path.stem, "holds": None, "why": reason}]
+    run, refused = stored(path)
+    if refused:
+        return [refused]
     from anseg.study.store import trained_on
 
     by_tree: dict[str, dict] = {}
@@ -206,14 +214,9 @@ def retrained_record(run: dict, folder: Path) -> dict:
 def compare(path: Path, root: str | None, keep: bool, retrained: Path | None = None) -> dict:
     """Replay the run stored at ``path`` (or read its retraining from ``retrained``) and print the comparison; its
     line for --csv (``holds``: True, False, or None where it cannot be replayed here, with the reason)."""
-    try:
-        run = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        print(f"replay_run: cannot read {path}: {exc}", file=sys.stderr)
-        return {"key": path.stem, "holds": None, "why": str(exc)}
-    if reason := why_not(run):
-        print(f"replay_run: cannot replay {path.name}: {reason}", file=sys.stderr)
-        return {"key": path.stem, "holds": None, "why": reason}
+    run, refused = stored(path)
+    if refused:
+        return refused
     if retrained is None:
         for difference in version_differences(run["environment"]):
             print(f"replay_run: warning: {difference}", file=sys.stderr)
