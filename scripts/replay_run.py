@@ -173,10 +173,8 @@ def across(path: Path, root: str | None, keep: bool, revisions: list[str]) -> li
     run, refused = stored(path)
     if refused:
         return [refused]
-    from anseg.study.store import trained_on
-
     by_tree: dict[str, dict] = {}
-    rows = []
+    trained: list[tuple[str, str]] = []  # (revision, its package tree), in the order asked
     print(f"{run['dataset']} {run['category']} split {run['split_index']} (stored {run['accuracy']['unit_area']!r}, "
           f"at {run['environment']['code_revision'][:12]})")
     for wanted in revisions:
@@ -190,13 +188,12 @@ def across(path: Path, root: str | None, keep: bool, revisions: list[str]) -> li
         again = by_tree[tree]
         print(f"  at {revision[:12]} (package tree {tree[:12]}): {again['accuracy'].get('unit_area')!r}"
               + ("" if again["key"] == run["key"] else " (another key)"))
-        rows.append({"key": run["key"], "category": run["category"], "split": run["split_index"],
-                     "revision": run["environment"]["code_revision"][:12], "stored": run["accuracy"]["unit_area"],
-                     "trained_on": trained_on(run), "at": revision[:12], "code_tree": tree[:12],
-                     "replayed": again["accuracy"].get("unit_area"), "replayed_on": here(), "why": ""})
+        trained.append((revision, tree))
     same = len({(again["key"], json.dumps(again["accuracy"], sort_keys=True)) for again in by_tree.values()}) == 1
     print("the same at every revision" if same else "the revisions DIFFER")
-    return [{**row, "holds": same} for row in rows]
+    machine = here()
+    return [{**csv_line(run, by_tree[tree], machine, same), "at": revision[:12], "code_tree": tree[:12]}
+            for revision, tree in trained]
 
 
 def retrained_record(run: dict, folder: Path) -> dict:
@@ -233,11 +230,17 @@ def compare(path: Path, root: str | None, keep: bool, retrained: Path | None = N
         print(f"  {metric:<10} stored {value!r:<22} replayed {again['accuracy'].get(metric)!r}")
     print(f"  training: stored {run['train_seconds']:.0f} s, replayed {again['train_seconds']:.0f} s")
     print("replay holds" if same else ("replay DIFFERS" + ("" if again["key"] == run["key"] else " (another key)")))
+    return csv_line(run, again, trained_on(again) if retrained else here(), same)
+
+
+def csv_line(run: dict, again: dict, replayed_on: str, holds: bool) -> dict:
+    """The --csv line that sets the stored ``run`` beside ``again``, its retraining on the machine ``replayed_on``."""
+    from anseg.study.store import trained_on
+
     return {"key": run["key"], "category": run["category"], "split": run["split_index"],
             "revision": run["environment"]["code_revision"][:12], "stored": run["accuracy"]["unit_area"],
             "replayed": again["accuracy"].get("unit_area"), "trained_on": trained_on(run),
-            "replayed_on": trained_on(again) if retrained else here(),
-            "holds": same, "why": ""}
+            "replayed_on": replayed_on, "holds": holds, "why": ""}
 
 
 def here() -> str:
