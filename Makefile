@@ -13,12 +13,14 @@ CONFIG ?=
 ONLY ?=
 SPLITS ?=
 
-.PHONY: reproduce test clean
+.PHONY: reproduce test clean lock
 
-$(STAMP): pyproject.toml
+# the exact releases of requirements.lock (hashes checked), then the package itself without resolving again
+$(STAMP): pyproject.toml requirements.lock
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[notebooks,dev]"
+	$(BIN)/python -m pip install --quiet --require-hashes -r requirements.lock
+	$(BIN)/python -m pip install --quiet --no-deps -e .
 	$(BIN)/python -m ipykernel install --prefix $(VENV) --name anseg --display-name "anseg (.venv)" > /dev/null
 	touch $(STAMP)
 
@@ -29,5 +31,12 @@ test: $(STAMP)
 	$(BIN)/ruff check anseg tests benchmarks scripts
 	$(BIN)/python -m pytest -q --durations=15
 
+# maintainers: refresh requirements.lock from pyproject.toml's ranges (pip-tools; keeps the pins it can)
+lock:
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet pip-tools==7.7.0
+	.venv-lock/bin/pip-compile --quiet --extra notebooks --extra dev --generate-hashes --strip-extras --allow-unsafe \
+		--no-emit-index-url --no-emit-find-links -o requirements.lock pyproject.toml
+
 clean:
-	rm -rf $(VENV) runs
+	rm -rf $(VENV) .venv-lock runs

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anseg import kernels
 from anseg.cache import (
     atomic_write,
     cache_dir,
@@ -414,14 +415,16 @@ def code() -> dict:
 
 def fingerprint(settings: FeatureSettings | None = None) -> str:
     """A short hash of everything that computes the features: every group's version, the settings, the
-    eigenbasis's version and the numeric libraries' releases.
+    eigenbasis's version, the numeric libraries' releases and their kernels (:func:`anseg.kernels.feature_kernels`:
+    NumPy's AVX-512 loops give the Gaussian curvature other last bits than its AVX2 ones).
 
     It keys the cache (a cache filled by other code is never read) and every
     stored run names it (``environment()["features"]``), so a result says which
     features it was trained and scored on.
     """
     text = json.dumps({"features": FEATURES_VERSION, "groups": GROUP_VERSIONS, "spectrum": SPECTRUM_VERSION,
-                       "settings": asdict(settings or FeatureSettings()), "libraries": library_versions()},
+                       "settings": asdict(settings or FeatureSettings()), "libraries": library_versions(),
+                       **kernels.feature_kernels()},
                       sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 

@@ -30,7 +30,7 @@ import numpy as np
 from anseg import datasets, pretrained
 from anseg.pipeline import Segmenter, feature_code, segment
 from anseg.study.plan import notebook_parameters, notebook_runs, planned_experiment
-from anseg.study.store import REPO, ResultStore
+from anseg.study.store import REPO, ResultStore, trained_on
 
 # which notebook runs become which shipped names
 # (Table I's split 0 also holds the plain reading's runs: those are not the configuration shipped)
@@ -71,7 +71,8 @@ def publish(model, name: str, result: dict, test_set, configuration: str, out: P
         "test_meshes": len(test_set),
         "precision": "float16 (no test label changes)" if same else "float32 (float16 changed test labels)",
         "code_revision": env.get("code_revision"),
-        "trained_on": env.get("cuda") or f"CPU, {env.get('cpus')} cores",
+        "trained_on": trained_on(result),
+        "kernels": env.get("kernels") or "each library's own (trained before the kernel pin)",
         "date": env.get("date"),
         "feature_code": feature_code(),
     }

@@ -4,13 +4,18 @@ The feature cache and every stored run are keyed by the groups' versions
 (:func:`anseg.features.fingerprint`). A change that moves a group's output,
 however little, without raising :data:`anseg.features.GROUP_VERSIONS` would let
 a cache serve features of other code, and a stored result would no longer
-replay. ``tests/data/feature_digests.json`` holds, per group, the version and
-the sha256 of its float32 output on :func:`fixed_mesh`; it is written by
-``python tests/test_feature_versions.py`` after a version is raised.
+replay. ``tests/data/feature_digests.json`` holds, per group, the version, the
+sha256 of its float32 output on :func:`fixed_mesh` and the kernels that computed
+it (NumPy's AVX-512 loops give ``gc`` other last bits than the pinned AVX2
+ones); it is written by ``python tests/test_feature_versions.py`` after a
+version is raised.
 """
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: the pin is set before NumPy loads (run as a script too)
+
+# isort: split
 import hashlib
 import json
 import sys
@@ -19,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from anseg import features
+from anseg import features, kernels
 from anseg.mesh import Mesh
 
 RECORD = Path(__file__).parent / "data" / "feature_digests.json"
@@ -40,10 +45,12 @@ def digests(mesh: Mesh) -> dict[str, str]:
 
 def stale_groups(record: dict, computed: dict[str, str]) -> list[str]:
     """The groups whose recorded version and digest disagree with the code's, each as a sentence."""
-    problems = []
+    problems, here = [], kernels.feature_kernels()["kernels"]
     for group, digest in computed.items():
         entry, version = record.get(group, {}), features.GROUP_VERSIONS[group]
-        if entry.get("version") == version and entry.get("digest") != digest:
+        if entry.get("version") == version and entry.get("digest") != digest and entry.get("kernels") != here:
+            problems.append(f"{group}: recorded under the kernels {entry.get('kernels')}, computed under {here}")
+        elif entry.get("version") == version and entry.get("digest") != digest:
             problems.append(f"{group}: its output changed at version {version}; raise GROUP_VERSIONS[{group!r}]")
         elif entry.get("version") != version:
             problems.append(f"{group}: version {version} is not recorded; rewrite the record "
@@ -71,6 +78,7 @@ def test_a_raised_version_changes_the_fingerprint_that_keys_the_cache(monkeypatc
 
 if __name__ == "__main__":
     computed = digests(fixed_mesh())
-    RECORD.write_text(json.dumps({g: {"version": features.GROUP_VERSIONS[g], "digest": d} for g, d in computed.items()},
+    RECORD.write_text(json.dumps({g: {"version": features.GROUP_VERSIONS[g], "digest": d,
+                                      "kernels": kernels.feature_kernels()["kernels"]} for g, d in computed.items()},
                                  indent=1) + "\n")
     print(f"wrote {RECORD}", file=sys.stderr)

@@ -140,6 +140,8 @@ def test_trained_on_names_the_gpu_or_the_cpu_model_and_count():
     assert trained_on({"environment": {"cuda": None, "cpus": 2, "cpu_model": "AMD EPYC 9R14"}}) == "AMD EPYC 9R14, 2 cores"
     # a record from before the model was kept
     assert trained_on({"environment": {"cuda": None, "cpus": 2}}) == "CPU, 2 cores"
+    assert trained_on({"environment": {"cuda": None, "cpus": 2, "cpu_model": "AMD EPYC", "kernels": {"pin": "avx2-1"}}}) \
+        == "AMD EPYC, 2 cores, kernels avx2-1"
 
 
 def test_the_environment_names_the_cpu_model(monkeypatch, tmp_path):

@@ -219,8 +219,10 @@ class NotebookRun:
         env, p = self.record["environment"], self.parameters
         revision = (env.get("code_revision") or "not recorded")[:12]
         clean = {True: "", False: " (with uncommitted changes)", None: ""}[env.get("code_clean")]
-        machine = env.get("cuda") or (f"{env.get('cpu_model', 'CPU')}, {env['cpus']} cores, "
-                                      f"torch kernels {env.get('torch_kernels', '?')}")
+        pinned = env.get("kernels", {})
+        kernels = (f"kernels {pinned['pin']} (torch {pinned['torch']}, NumPy {pinned['numpy']}), {pinned['isa']}"
+                   if pinned else f"torch kernels {env.get('torch_kernels', '?')}")
+        machine = env.get("cuda") or f"{env.get('cpu_model', 'CPU')}, {env['cpus']} cores, {kernels}"
         data = ", ".join(d["dataset"] for d in self.record["data"])
         splits = f"; splits {', '.join(map(str, p['splits']))}" if "splits" in p else ""
         rows = [("configuration", f"`{p['config']}` ({p['epochs']} epochs, seed {p['seed']})"),

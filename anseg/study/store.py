@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from anseg import features
+from anseg import features, kernels
 from anseg.cache import atomic_write
 from anseg.model import RETIRED
 from anseg.pipeline import SEGMENT_SETTINGS_ADDED_LATER, SegmentConfig
+from anseg.study import releases
 from anseg.train import TRAIN_SETTINGS_ADDED_LATER, TrainConfig
 
 REPO = Path(__file__).resolve().parents[2]
@@ -89,7 +90,8 @@ def recorded_settings(record: dict) -> tuple[SegmentConfig, TrainConfig]:
 
 
 def environment() -> dict:
-    """Versions, hardware (and the torch threads a replay needs), the code revision, the features' fingerprint and the
+    """Versions, hardware (and the torch threads a replay needs), the kernels in force (:func:`anseg.kernels.in_force`),
+    the locked releases (:func:`anseg.study.releases.record`), the code revision, the features' fingerprint and the
     date (UTC), kept with every result."""
     from datetime import datetime, timezone
 
@@ -102,7 +104,8 @@ def environment() -> dict:
         "machine": platform.machine(), "processor": platform.processor() or platform.machine(),
         "torch_threads": torch.get_num_threads(),
         "torch_kernels": torch.backends.cpu.get_cpu_capability(),  # another instruction set rounds otherwise
-        **hardware(), **code_revision(), "features": features.fingerprint(),
+        **hardware(), "kernels": kernels.in_force(), "releases": releases.record(),
+        **code_revision(), "features": features.fingerprint(),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
 
@@ -156,9 +159,11 @@ def code_revision(root: Path = REPO) -> dict:
 
 def trained_on(result: dict) -> str:
     """The machine a stored result was trained on: its GPU, else its CPU model and count ("CPU" where the record
-    predates the model), since a notebook may read results made elsewhere."""
+    predates the model) and the kernel pin it ran under (where the record names one: records made before the pin
+    ran each library's own kernels), since a notebook may read results made elsewhere."""
     env = result["environment"]
-    return env["cuda"] or f"{env.get('cpu_model', 'CPU')}, {env['cpus']} cores"
+    pin = f", kernels {env['kernels']['pin']}" if "kernels" in env else ""
+    return env["cuda"] or f"{env.get('cpu_model', 'CPU')}, {env['cpus']} cores{pin}"
 
 
 class ResultStore:
