@@ -87,17 +87,29 @@ def why_not_pinned() -> str | None:
     return None
 
 
+def pin_environment() -> str | None:
+    """Set each variable of :data:`PIN` the user has not set, where the pin applies; why not (None where it does).
+
+    Alone, for a process that must not import anseg yet (a benchmark that puts
+    another revision's checkout first) but whose children and libraries should
+    run the pinned kernels.
+    """
+    reason = why_not_pinned()
+    if reason is None:
+        for name, value in PIN.items():
+            os.environ.setdefault(name, value)
+    return reason
+
+
 def pin() -> None:
     """Set each variable of :data:`PIN` the user has not set; warn once per library loaded earlier with other kernels."""
-    reason = why_not_pinned()
+    reason = pin_environment()
     if reason is not None:
         if reason.startswith("this CPU") and "lacks" not in _warned:
             _warned.add("lacks")
             warnings.warn(f"anseg: {reason}: its kernels are the machine's own, so numbers may differ from the "
                           "project's", KernelWarning, stacklevel=2)
         return
-    for name, value in PIN.items():
-        os.environ.setdefault(name, value)
     for library, drifted in _loaded_with_other_kernels().items():
         if drifted and library not in _warned:
             _warned.add(library)

@@ -21,6 +21,9 @@ forward; the scores again and 4 gradient products backward).
 
 from __future__ import annotations
 
+import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+
+# isort: split
 import argparse
 import math
 import time

@@ -22,6 +22,9 @@ Mesh: ``--mesh PATH``; else the PSB test mesh closest to 25K faces from
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import argparse
 import ctypes
 import gc

@@ -33,6 +33,9 @@ project's 2-core CPU is kept in ``results/peers/``.
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import argparse
 import json
 import sys

@@ -30,6 +30,9 @@ that chose the AGD source count and the SDF ray count.
 
 from __future__ import annotations
 
+import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+
+# isort: split
 import argparse
 import multiprocessing
 import resource

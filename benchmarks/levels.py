@@ -32,6 +32,9 @@ model's settings, e.g. another collapse priority), and for every level this prin
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import argparse
 import json
 import warnings

@@ -40,6 +40,9 @@ or a MeshCNN set's test meshes); a model file needs ``--data``.
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import argparse
 import csv
 import dataclasses

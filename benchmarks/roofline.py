@@ -18,6 +18,9 @@ without changing its arithmetic.
 
 from __future__ import annotations
 
+import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+
+# isort: split
 import argparse
 import time
 from dataclasses import replace

@@ -31,6 +31,9 @@ the run the claims ledger quotes for the paper's cost claim).
 
 from __future__ import annotations
 
+import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+
+# isort: split
 import argparse
 import dataclasses
 import json
@@ -43,7 +46,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
-from stages import import_from, print_stages, reference_checkout, stage_timers
+from stages import import_from, kernels_of_children, print_stages, reference_checkout, stage_timers
 
 
 def pick_mesh(path: str | None, subdivide: int, near: int = 25_000):
@@ -145,8 +148,10 @@ def measure(args) -> None:
     best = min(runs, key=lambda t: t["total"])
     what = (f"mesh: {name}, {mesh.n_faces} faces; config: {model.config.cycles} cycles at ratio {model.config.ratio}, "
             f"mode {model.config.mode}\ntorch threads: {torch.get_num_threads()}; best of {args.repeat} runs after a warm-up")
+    from anseg.kernels import in_force
+
     print(json.dumps({"what": what, "mesh": name, "faces": mesh.n_faces, "stages": best, "peak": peak / 2**20,
-                      "baseline": baseline / 2**20}))
+                      "baseline": baseline / 2**20, "kernels": in_force()}))
 
 
 def main(argv=None) -> None:
@@ -163,6 +168,8 @@ def main(argv=None) -> None:
     parser.add_argument("--reference", help="git revision whose code segments the same mesh beside this one")
     parser.add_argument("--set", default="", help="overrides of the one-epoch model's settings, field=value,... (default: none)")
     parser.add_argument("--reference-set", help="the reference run's overrides instead of --set (\"\": the defaults)")
+    parser.add_argument("--reference-kernels", choices=["native"],
+                        help="the reference runs each library's own kernels (ANSEG_KERNELS=native): the pin's cost")
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--code", help=argparse.SUPPRESS)
@@ -175,18 +182,20 @@ def main(argv=None) -> None:
            *([f"--mesh={args.mesh}"] if args.mesh else []), *([f"--model={args.model}"] if args.model else [])]
     reference_set = args.set if args.reference_set is None else args.reference_set
 
-    def child(code: str | None, overrides: str) -> dict:  # a fresh process, so that the peak memory belongs to this mesh alone
+    def child(code: str | None, overrides: str, kernels: str | None = None) -> dict:  # a fresh process: the peak is this mesh's
         extra = ["--code", code] if code else []
-        done = subprocess.run([sys.executable, __file__, "--child", *own, f"--set={overrides}", *extra], check=True,
-                              capture_output=True, text=True)
+        with kernels_of_children(kernels):
+            done = subprocess.run([sys.executable, __file__, "--child", *own, f"--set={overrides}", *extra], check=True,
+                                  capture_output=True, text=True)
         return json.loads(done.stdout.strip().splitlines()[-1])
 
     with reference_checkout(args.reference) as code:
         ours = child(None, args.set)
-        compared = code is not None or args.reference_set is not None
-        reference = child(code, reference_set) if compared else None
+        compared = code is not None or args.reference_set is not None or args.reference_kernels is not None
+        reference = child(code, reference_set, args.reference_kernels) if compared else None
     print(ours["what"] + (f"\nsettings: [{args.set or 'defaults'}]" if args.set or compared else ""))
-    label = " ".join(filter(None, [args.reference, f"[{reference_set or 'defaults'}]" if args.reference_set is not None else ""]))
+    label = " ".join(filter(None, [args.reference, f"[{reference_set or 'defaults'}]" if args.reference_set is not None else "",
+                                   f"{args.reference_kernels} kernels" if args.reference_kernels else ""]))
     print_stages(ours["stages"], reference["stages"] if reference else None, name=label or "reference")
     print(f"peak resident memory: {ours['peak']:.2f} GiB (after loading: {ours['baseline']:.2f} GiB)"
           + (f"; {label}: {reference['peak']:.2f} GiB" if reference else ""))

@@ -1,8 +1,15 @@
-"""What the benchmarks share: stage timers that wrap the package functions, a reference revision's checkout,
-and this core's arithmetic peak."""
+"""What the benchmarks share: the kernel pin before NumPy loads, stage timers that wrap the package functions, a
+reference revision's checkout, and this core's arithmetic peak.
+
+Imported first by the benchmarks that can run another revision's code: it
+sets the pinned kernels' variables (``anseg/kernels.py``, read as a file so
+that ``anseg`` itself is not imported before a reference checkout is put
+first), so this process's NumPy and every child process run them.
+"""
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import subprocess
 import sys
@@ -12,6 +19,10 @@ from contextlib import contextmanager
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
+_spec = importlib.util.spec_from_file_location("anseg_kernel_pin", REPO / "anseg" / "kernels.py")
+_kernels = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_kernels)
+_kernels.pin_environment()
 
 
 @contextmanager
@@ -27,6 +38,26 @@ def reference_checkout(revision: str | None):
             yield path
         finally:
             subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", path], capture_output=True)
+
+
+@contextmanager
+def kernels_of_children(kernels: str | None):
+    """While active, the processes started get ``ANSEG_KERNELS=kernels`` (``native``: each library's own kernels,
+    with the pin's variables that this process inherited or set taken away); nothing changes for None."""
+    import os
+
+    if kernels is None:
+        yield
+        return
+    saved = dict(os.environ)
+    for name in _kernels.PIN:
+        os.environ.pop(name, None)
+    os.environ["ANSEG_KERNELS"] = kernels
+    try:
+        yield
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
 
 
 def import_from(code: str | None) -> None:

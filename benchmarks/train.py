@@ -23,6 +23,9 @@ one pair can be off by 20 % either way.
 
 from __future__ import annotations
 
+import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+
+# isort: split
 import argparse
 import multiprocessing
 import time
@@ -30,7 +33,7 @@ from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from stages import import_from, print_stages, reference_checkout, stage_timers
+from stages import import_from, kernels_of_children, print_stages, reference_checkout, stage_timers
 
 
 def measure(args, code: str | None, overrides: str) -> tuple[dict, float, str]:
@@ -54,9 +57,9 @@ def measure(args, code: str | None, overrides: str) -> tuple[dict, float, str]:
     config, settings = configuration("default",
                                      f"mode={args.mode},train.epochs={args.epochs},train.device={args.device},{overrides}")
     totals = defaultdict(float)
-    stages = {"features (level 0)": (train, "level_zero_features"), "rebuild hierarchy": (train, "_examples")}
+    wrapped = {"features (level 0)": (train, "level_zero_features"), "rebuild hierarchy": (train, "_examples")}
     start = time.perf_counter()
-    with stage_timers(totals, stages):
+    with stage_timers(totals, wrapped):
         model = train.fit(train_set, train_set[0].label_names, config, settings, progress=False)
     totals["gradient steps"] = time.perf_counter() - start - totals["features (level 0)"] - totals["rebuild hierarchy"]
     evaluated = time.perf_counter()
@@ -82,21 +85,25 @@ def main(argv=None) -> None:
     parser.add_argument("--reference", help="git revision whose code trains the same run beside this one")
     parser.add_argument("--set", default="", help="overrides of the default settings, field=value,... (default: none)")
     parser.add_argument("--reference-set", help="the reference run's overrides instead of --set (\"\": the defaults)")
+    parser.add_argument("--reference-kernels", choices=["native"],
+                        help="the reference runs each library's own kernels (ANSEG_KERNELS=native): the pin's cost")
     parser.add_argument("--pairs", type=int, default=1,
                         help="runs of each code, in alternating order; the figures are medians (default: 1)")
     args = parser.parse_args(argv)
 
     context = multiprocessing.get_context("spawn")  # fresh processes: each imports its own anseg
     reference_set = args.set if args.reference_set is None else args.reference_set
-    label = " ".join(filter(None, [args.reference, f"[{reference_set or 'defaults'}]" if args.reference_set is not None else ""]))
+    label = " ".join(filter(None, [args.reference, f"[{reference_set or 'defaults'}]" if args.reference_set is not None else "",
+                                   f"{args.reference_kernels} kernels" if args.reference_kernels else ""]))
     with reference_checkout(args.reference) as code:
-        compared = code is not None or args.reference_set is not None
+        compared = code is not None or args.reference_set is not None or args.reference_kernels is not None
         runs = {"ours": [], "reference": []}
         for pair in range(args.pairs):
             # alternate which code goes first, so that a load that drifts over the run weighs on both alike
             order = [("ours", None, args.set)] + ([("reference", code, reference_set)] if compared else [])
             for name, checkout, overrides in order[:: 1 if pair % 2 == 0 else -1]:
-                with ProcessPoolExecutor(1, mp_context=context) as pool:
+                with kernels_of_children(args.reference_kernels if name == "reference" else None), \
+                        ProcessPoolExecutor(1, mp_context=context) as pool:
                     runs[name].append(pool.submit(measure, args, checkout, overrides).result())
     ours, accuracy, what = _median_run(runs["ours"])
     reference = _median_run(runs["reference"]) if compared else None
@@ -111,8 +118,8 @@ def main(argv=None) -> None:
 
 def _median_run(runs: list[tuple[dict, float, str]]) -> tuple[dict, float, str]:
     """Each stage's median seconds over the runs; the accuracy and description of the first (every run trains the same)."""
-    stages = {stage: float(np.median([r[0][stage] for r in runs])) for stage in runs[0][0]}
-    return stages, runs[0][1], runs[0][2]
+    medians = {stage: float(np.median([r[0][stage] for r in runs])) for stage in runs[0][0]}
+    return medians, runs[0][1], runs[0][2]
 
 
 if __name__ == "__main__":

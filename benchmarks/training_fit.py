@@ -15,6 +15,9 @@ capacity, or information its inputs lack, not regularisation.
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import argparse
 import json
 import sys

@@ -16,6 +16,9 @@ a transport format for our own runs, not a way to redistribute the data.
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import io
 import sys
 import tarfile

@@ -18,6 +18,9 @@ after the run's one reading of them.
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import argparse
 import io
 import json

@@ -41,6 +41,9 @@ round differently from one version to the next.
 
 from __future__ import annotations
 
+import anseg  # noqa: F401  first: importing anseg pins the float kernels before NumPy and torch load
+
+# isort: split
 import argparse
 import csv
 import json
