@@ -120,7 +120,7 @@ def test_training_cost_compares_cpu_seconds_on_the_cells_both_trained(tmp_path):
     assert np.isnan(comparison.training_cost(older, "cheap", "default"))
     text = comparison.write_report(results, "default", tmp_path, "cost")
     assert "training costs 0.30x the baseline's CPU time" in text
-    assert (tmp_path / "cost_paired.csv").read_text().splitlines()[0].endswith(",cost,revisions,baseline_revisions")
+    assert (tmp_path / "cost_paired.csv").read_text().splitlines()[0].endswith(",cost,revisions,baseline_revisions,purpose,verdict")
 
 
 def test_the_report_says_when_the_arms_ran_other_code_revisions(tmp_path):
@@ -134,7 +134,7 @@ def test_the_report_says_when_the_arms_ran_other_code_revisions(tmp_path):
                         result("new", "C", "aaaaaaa1111")]
     text = comparison.write_report(mixed, "default", tmp_path, "mixed")
     assert "trained at aaaaaaa aaaaaaa+ bbbbbbb, the baseline at aaaaaaa" in text
-    assert (tmp_path / "mixed_paired.csv").read_text().splitlines()[1].endswith(",aaaaaaa aaaaaaa+ bbbbbbb,aaaaaaa")
+    assert (tmp_path / "mixed_paired.csv").read_text().splitlines()[1].endswith(",aaaaaaa aaaaaaa+ bbbbbbb,aaaaaaa,accuracy,no evidence")
 
 
 def test_seed_spread_reads_each_cell_across_its_seeds(tmp_path):
@@ -241,3 +241,22 @@ def test_a_stored_cell_reads_back_under_the_arm_name_of_the_study(tmp_path, monk
                                    **SYNTHETIC)
     assert [r["arm"] for r in validate.read_results(tmp_path, renamed)] == ["renamed"]
     assert [r["arm"] for r in validate.run_study(renamed, tmp_path, progress=False)] == ["renamed"]
+
+
+@pytest.mark.parametrize("low, high, purpose, expected", [
+    (0.1, 2.0, "accuracy", "adopt"), (-0.1, 2.0, "accuracy", "no evidence"), (-2.0, -0.1, "accuracy", "worse"),
+    (-0.15, 2.4, "fix", "adopt (non-inferior: lower end above -0.5)"), (-0.6, 2.0, "fix", "no evidence"),
+    (-2.0, -0.6, "fix", "worse"), (-0.5, 1.0, "fix", "no evidence")])
+def test_a_fix_of_a_defect_is_adopted_when_non_inferior_an_accuracy_lever_when_above_zero(low, high, purpose, expected):
+    assert comparison.verdict({"low": low, "high": high, "categories": 9}, purpose) == expected
+    assert comparison.verdict({"low": low, "high": high, "categories": 2}, purpose).startswith("no verdict")
+
+
+def test_the_report_judges_the_arms_named_as_fixes_by_the_rule_for_fixes(tmp_path):
+    results = [{"arm": arm, "category": f"C{c}", "fold": f, "seed": 0,
+                "accuracy": {"unit_area": (80 + c + f + bonus[(c + f) % 3]) / 100}}
+               for arm, bonus in (("default", (0, 0, 0)), ("pose", (-0.4, 0.1, 0.2))) for c in range(4) for f in range(3)]
+    assert "accuracy: no evidence" in comparison.write_report(results, "default", tmp_path, "as-lever")
+    assert "fix: adopt (non-inferior" in comparison.write_report(results, "default", tmp_path, "as-fix", ("pose",))
+    paired = (tmp_path / "as-fix_paired.csv").read_text().splitlines()
+    assert paired[0].endswith(",purpose,verdict") and ",fix,adopt (non-inferior" in paired[1]

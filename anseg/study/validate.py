@@ -16,8 +16,10 @@ stored under ``<out>/runs/<key>.json`` as it finishes, so a study resumes where 
 :data:`INFERENCE_ONLY` settings do not retrain: the cell reuses the model of the same training
 settings, kept under ``<out>/models`` (not committed). The report (:mod:`anseg.study.comparison`)
 gives each arm's held-out accuracy and its paired difference from the baseline with a 95 %
-two-stage bootstrap interval; the rule: adopt when the interval excludes 0 and the mean is
-positive. ``--ensemble`` also scores each arm's seeds together, their probabilities averaged
+two-stage bootstrap interval; the rule: adopt an arm for accuracy when the interval lies above
+0, and an arm that removes a defect (``--fix ARM``: labels that depend on pose, order, threads or
+the machine) when it is non-inferior, the interval's lower end above -0.5 points
+(:func:`anseg.study.comparison.verdict`). ``--ensemble`` also scores each arm's seeds together, their probabilities averaged
 (:func:`~anseg.pipeline.segment`'s ``ensemble``), to show how much of a difference is seed
 variance (``<out>/ensembles``, ``<out>/<study>_ensemble.csv``).
 """
@@ -284,6 +286,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="NAME[:field=value,train.field=value,...]; repeat for each arm (the first is the baseline "
                              "unless --baseline says otherwise)")
     parser.add_argument("--baseline", help="the arm the others are compared with (default: the first --arm)")
+    parser.add_argument("--fix", action="append", default=[], metavar="ARM",
+                        help="an arm that removes a defect (pose, order, threads, machine): adopted when non-inferior, "
+                             "its interval's lower end above -0.5 points, instead of above 0 (repeatable)")
     parser.add_argument("--categories", nargs="+", default=list(DEV_SUITE), help="default: the development suite")
     parser.add_argument("--folds", type=int, default=3, help="folds of the split's training meshes (default: 3)")
     parser.add_argument("--use-folds", type=int, nargs="+", help="which folds to run (default: all)")
@@ -315,6 +320,9 @@ def main(argv: list[str] | None = None) -> int:
         baseline = args.baseline or arms[0].name
         if baseline not in {a.name for a in arms}:
             raise ValueError(f"baseline {baseline!r} is not among the arms")
+        not_compared = sorted(set(args.fix) - ({a.name for a in arms} - {baseline}))
+        if not_compared:
+            raise ValueError(f"--fix names an arm that is not compared with the baseline: {', '.join(not_compared)}")
         if args.workers < 1:
             raise ValueError("--workers must be at least 1")
         if args.ensemble and len(args.seeds) < 2:
@@ -336,7 +344,7 @@ def main(argv: list[str] | None = None) -> int:
     if not results:
         print("no results stored for this study yet", file=sys.stderr)
         return 1
-    print(write_report(results, baseline, args.out, args.study))
+    print(write_report(results, baseline, args.out, args.study, tuple(args.fix)))
     if args.ensemble:
         ensembles = run_ensembles(cells, args.out, args.data, args.workers, args.scheduler, not args.quiet, args.backend)
         if ensembles:
