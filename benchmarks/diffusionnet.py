@@ -23,8 +23,8 @@ Usage::
     git clone https://github.com/nmwsharp/diffusion-net
     pip install robust_laplacian potpourri3d   # what diffusion_net imports beyond torch, scipy, scikit-learn
     ANSEG_DATA=/path/to/datasets python benchmarks/diffusionnet.py --diffusion-net diffusion-net \\
-        [--category Hand Teddy] [--split 0] [--epochs 200] [--input hks|xyz] [--device auto] [--seed 0] \\
-        [--op-cache DIR] [--json FILE]
+        [--dataset psb|human_seg] [--category Hand Teddy] [--split 0] [--epochs 200] [--input hks|xyz] \\
+        [--device auto] [--seed 0] [--op-cache DIR] [--json FILE]
 
 Nothing is written into results/; ``--json FILE`` keeps the printed figures with
 the machine, versions and the clone's commit. The rerun of Hand made on this
@@ -95,8 +95,9 @@ class Prepared:
                      gradX=self.grad_x, gradY=self.grad_y, faces=self.faces)
 
 
-def run_category(dn, category: str, args, device) -> dict:
-    """Train on the split's training meshes, score the test meshes; the figures of one category."""
+def run_category(dn, category: str | None, args, device) -> dict:
+    """Train on the split's training meshes, score the test meshes; the figures of one PSB category, or of the
+    human set (``category`` None, ``--dataset human_seg``: its one split, the paper's)."""
     import torch
     from tqdm.auto import tqdm
 
@@ -105,8 +106,9 @@ def run_category(dn, category: str, args, device) -> dict:
     rotation = np.random.RandomState(args.seed)
     start = time.perf_counter()
     train = [Prepared(dn, item, args, device)
-             for item in datasets.load("psb", category=category, split="train", split_index=args.split, progress=False)]
-    test_items = datasets.load("psb", category=category, split="test", split_index=args.split, progress=False)
+             for item in datasets.load(args.dataset, category=category, split="train", split_index=args.split,
+                                       progress=False)]
+    test_items = datasets.load(args.dataset, category=category, split="test", split_index=args.split, progress=False)
     test = [Prepared(dn, item, args, device) for item in test_items]
     operator_s = time.perf_counter() - start
 
@@ -117,7 +119,7 @@ def run_category(dn, category: str, args, device) -> dict:
     scheduler = torch.optim.lr_scheduler.StepLR(optimizer, step_size=DECAY_EVERY, gamma=DECAY_RATE)
     start = time.perf_counter()
     model.train()
-    for _ in tqdm(range(args.epochs), desc=f"DiffusionNet {category}", unit="epoch"):
+    for _ in tqdm(range(args.epochs), desc=f"DiffusionNet {category or args.dataset}", unit="epoch"):
         for i in torch.randperm(len(train)).tolist():
             loss = torch.nn.functional.nll_loss(train[i].forward(dn, model, rotation if args.input == "xyz" else None),
                                                 train[i].labels)
@@ -131,8 +133,8 @@ def run_category(dn, category: str, args, device) -> dict:
     with torch.no_grad():
         predicted = [mesh.forward(dn, model).argmax(dim=1).cpu().numpy() for mesh in test]
     scores = pooled_accuracy(predicted, [item.labels for item in test_items], [item.mesh.face_areas for item in test_items])
-    reference = measured_on_our_data(category).get(f"DiffusionNet ({args.input}), unbacked")
-    return {"category": category, **{key: 100 * value for key, value in scores.items()},
+    reference = measured_on_our_data(category or args.dataset).get(f"DiffusionNet ({args.input}), unbacked")
+    return {"category": category or args.dataset, **{key: 100 * value for key, value in scores.items()},
             "reference": reference, "train_s": train_s, "operator_s": operator_s}
 
 
@@ -140,9 +142,12 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--diffusion-net", type=Path, required=True, metavar="PATH",
                         help="a clone of https://github.com/nmwsharp/diffusion-net")
+    parser.add_argument("--dataset", default="psb", choices=["psb", "human_seg"],
+                        help="PSB (by category) or the human set as MeshCNN distributes it (default: psb)")
     parser.add_argument("--category", nargs="+", action="extend", choices=datasets.PSB_CATEGORIES,
                         help="PSB categories (default: all 16)")
-    parser.add_argument("--split", type=int, default=0, choices=range(datasets.PSB_SPLIT_COUNT))
+    parser.add_argument("--split", type=int, default=0, choices=range(datasets.PSB_SPLIT_COUNT),
+                        help="PSB's fixed split (default: 0); the human set has one split")
     parser.add_argument("--epochs", type=int, default=EPOCHS, help=f"default: {EPOCHS}, the authors' setting")
     parser.add_argument("--input", default="hks", choices=["hks", "xyz"])
     parser.add_argument("--device", default="auto", choices=["auto", "cpu", "cuda"])
@@ -150,6 +155,8 @@ def main(argv=None) -> None:
     parser.add_argument("--op-cache", help="folder where diffusion_net keeps each mesh's operators between runs (default: none)")
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
     args = parser.parse_args(argv)
+    if args.dataset == "human_seg" and (args.category or args.split):
+        parser.error("the human set has no categories and one split: --category and --split are for PSB")
 
     dn = import_diffusion_net(args.diffusion_net)
     import torch
@@ -157,16 +164,18 @@ def main(argv=None) -> None:
     device = torch.device("cuda" if args.device == "auto" and torch.cuda.is_available() else
                           "cpu" if args.device == "auto" else args.device)
     rows = []
-    print(f"DiffusionNet ({args.input}), PSB split {args.split}, {args.epochs} epochs, {device}; Eq. 5 accuracy in %")
-    for category in args.category or datasets.PSB_CATEGORIES:
+    data = f"PSB split {args.split}" if args.dataset == "psb" else "the human set"
+    print(f"DiffusionNet ({args.input}), {data}, {args.epochs} epochs, {device}; Eq. 5 accuracy in %")
+    for category in (args.category or datasets.PSB_CATEGORIES) if args.dataset == "psb" else [None]:
         try:
             row = run_category(dn, category, args, device)
         except datasets.DatasetError as error:
             sys.exit(f"error: {error}")
         rows.append(row)
         reference = "" if row["reference"] is None else f"  reference {row['reference']:6.2f}"
-        print(f"{category:10s} unit area {row['unit_area']:6.2f}  raw area {row['raw_area']:6.2f}  faces {row['faces']:6.2f}"
-              f"{reference}  train {row['train_s']:7.1f} s  (operators {row['operator_s']:.1f} s)", flush=True)
+        print(f"{row['category']:10s} unit area {row['unit_area']:6.2f}  raw area {row['raw_area']:6.2f}  "
+              f"faces {row['faces']:6.2f}{reference}  train {row['train_s']:7.1f} s  (operators {row['operator_s']:.1f} s)",
+              flush=True)
 
     mean = float(np.mean([row["unit_area"] for row in rows]))
     references = [row["reference"] for row in rows]
