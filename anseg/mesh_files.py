@@ -12,6 +12,7 @@ Meshes are written in float64, so far-off scans keep their shape.
 
 from __future__ import annotations
 
+import codecs
 import json
 import os
 import re
@@ -172,6 +173,16 @@ def labels_for_file_faces(labels, file_face, mesh: Mesh) -> np.ndarray:
     return np.where(area.sum(axis=1) > 0, area.argmax(axis=1), count.argmax(axis=1)).astype(labels.dtype)
 
 
+def _text(data: bytes) -> str:
+    """A text mesh file's bytes as text: UTF-8, or UTF-16 where a byte-order mark says so; a UTF-8 mark (Windows
+    editors save one) is skipped. Bytes that are not text become U+FFFD, which no number parses as."""
+    if data.startswith(codecs.BOM_UTF8):
+        return data[len(codecs.BOM_UTF8):].decode("utf-8", errors="replace")
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        return data.decode("utf-16", errors="replace")
+    return data.decode("utf-8", errors="replace")
+
+
 def _read_obj(path: Path):
     """Vertices and faces of an OBJ in file order, whatever its ``usemtl``, ``o``, ``g`` and ``s`` lines group them by.
 
@@ -182,7 +193,7 @@ def _read_obj(path: Path):
     range for validation to report.
     """
     vertices, corners, sides = [], [], []
-    for line in path.read_bytes().decode("utf-8", errors="replace").replace("\\\n", " ").splitlines():
+    for line in _text(path.read_bytes()).replace("\\\n", " ").splitlines():
         words = line.split("#", 1)[0].split()
         if not words:
             continue
@@ -202,7 +213,7 @@ def _read_off(path: Path):
     """Vertices and polygons of an OFF file as written, polygons of any number of sides (trimesh's reader splits quads
     out of order); colours after the coordinates or the indices are left out."""
     data = path.read_bytes()
-    lines = [line.split("#", 1)[0].split() for line in data.decode("utf-8", errors="replace").splitlines()]
+    lines = [line.split("#", 1)[0].split() for line in _text(data).splitlines()]
     lines = [words for words in lines if words]
     if not re.fullmatch(r"(ST)?C?N?OFF", lines[0][0]):
         raise ValueError("not an OFF header")

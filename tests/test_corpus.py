@@ -245,6 +245,17 @@ def off_case(make, stray: bool = False):
     return build
 
 
+def with_byte_order_mark(build, encoding: str = "utf-8-sig"):
+    """The file ``build`` writes, saved again with a byte-order mark as Windows editors save text (``utf-8-sig``;
+    ``utf-16`` also writes one)."""
+    def mark(folder: Path, name: str) -> Built:
+        built = build(folder, name)
+        built.path.write_bytes(built.path.read_bytes().decode("utf-8").encode(encoding))
+        return built
+
+    return mark
+
+
 def scene_case(kind: str = "parts"):
     """A body with a head as its child node and a third root beside them: a bigger ball (``parts``), a facet a billion
     units away (``far``), or the head's mesh again (``copies``: one mesh placed twice, each placement one object)."""
@@ -389,6 +400,10 @@ CORPUS = {
     "stl ascii": Case(trimesh_case(capsule, "stl_ascii"), "capsule.stl", OK, OK),
     "stl binary": Case(trimesh_case(capsule, "stl"), "capsule.stl", OK, OK),
     "stl binary, header saying solid": Case(trimesh_case(capsule, "stl", solid_header=True), "capsule.stl", OK, OK),
+    # text saved by an editor with a byte-order mark
+    "off, utf-8 byte-order mark": Case(with_byte_order_mark(off_case(capsule_off)), "bom.off", OK, OK),
+    "off, utf-16": Case(with_byte_order_mark(off_case(capsule_off), "utf-16"), "utf16.off", OK, OK),
+    "obj, utf-8 byte-order mark": Case(with_byte_order_mark(polygons_case(write_obj)), "bom.obj", OK, OK),
     "gltf scene": Case(scene_case(), "scene.gltf", OK, OK),
     "glb scene": Case(scene_case(), "scene.glb", OK, OK),
     "glb scene placing one mesh twice": Case(scene_case("copies"), "copies.glb", OK, OK),

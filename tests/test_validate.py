@@ -120,7 +120,8 @@ def test_training_cost_compares_cpu_seconds_on_the_cells_both_trained(tmp_path):
     assert np.isnan(comparison.training_cost(older, "cheap", "default"))
     text = comparison.write_report(results, "default", tmp_path, "cost")
     assert "training costs 0.30x the baseline's CPU time" in text
-    assert (tmp_path / "cost_paired.csv").read_text().splitlines()[0].endswith(",cost,revisions,baseline_revisions,purpose,verdict")
+    header = (tmp_path / "cost_paired.csv").read_text().splitlines()[0]
+    assert header.endswith(",cost,revisions,baseline_revisions,purpose,verdict")
 
 
 def test_the_report_says_when_the_arms_ran_other_code_revisions(tmp_path):
@@ -134,7 +135,8 @@ def test_the_report_says_when_the_arms_ran_other_code_revisions(tmp_path):
                         result("new", "C", "aaaaaaa1111")]
     text = comparison.write_report(mixed, "default", tmp_path, "mixed")
     assert "trained at aaaaaaa aaaaaaa+ bbbbbbb, the baseline at aaaaaaa" in text
-    assert (tmp_path / "mixed_paired.csv").read_text().splitlines()[1].endswith(",aaaaaaa aaaaaaa+ bbbbbbb,aaaaaaa,accuracy,no evidence")
+    row = (tmp_path / "mixed_paired.csv").read_text().splitlines()[1]
+    assert row.endswith(",aaaaaaa aaaaaaa+ bbbbbbb,aaaaaaa,accuracy,no evidence")
 
 
 def test_seed_spread_reads_each_cell_across_its_seeds(tmp_path):
