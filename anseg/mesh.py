@@ -31,6 +31,8 @@ class MeshError(ValueError):
 REPAIR_HINT = "anseg.repair(mesh)"
 # a face is degenerate when its area is at most this times its longest edge squared (see degenerate_faces)
 DEGENERATE_EPS = 1e-10
+# a face has no area when its area is at most this many units of float64 rounding (see zero_area_faces)
+ZERO_AREA_ROUNDING = 4.0
 # repair refuses to drop more than this share of the faces (see repair)
 REPAIR_MAX_DROP = 0.5
 # the largest coordinate magnitude accepted: float32's largest finite value, so a file in any format can hold the
@@ -285,10 +287,14 @@ class Mesh:
                 f"faces index missing vertices: indices span [{self.faces.min()}, {self.faces.max()}] "
                 f"but there are {self.n_vertices} vertices"
             )
-        degenerate = np.flatnonzero(degenerate_faces(self))
-        if len(degenerate):
-            raise MeshError(f"{len(degenerate)} degenerate (zero-area) faces (first: {int(degenerate[0])}); "
+        flat = np.flatnonzero(zero_area_faces(self))
+        if len(flat):
+            raise MeshError(f"{_faces(len(flat))} of zero area (first: {int(flat[0])}); "
                             f"{REPAIR_HINT} drops them and keeps a map to the input faces")
+        thin = np.flatnonzero(degenerate_faces(self))
+        if len(thin):
+            raise MeshError(f"{_faces(len(thin))} thinner than {DEGENERATE_EPS:.0e} of their longest edge (slivers; first: "
+                            f"{int(thin[0])}); {REPAIR_HINT} drops them and keeps a map to the input faces")
         repeated = self.n_faces - _count_distinct_rows(np.sort(self.faces, axis=1), self.n_vertices)
         if repeated:
             raise MeshError(f"{repeated} faces repeat another face's three vertices; "
@@ -340,6 +346,25 @@ def degenerate_faces(mesh: Mesh) -> np.ndarray:
     corners = mesh.vertices[mesh.faces]
     longest_squared = ((np.roll(corners, -1, axis=1) - corners) ** 2).sum(axis=2).max(axis=1, initial=0.0)
     return mesh.face_areas <= DEGENERATE_EPS * longest_squared
+
+
+def _faces(n: int) -> str:
+    return f"{n} face{'s' if n != 1 else ''}"
+
+
+def zero_area_faces(mesh: Mesh) -> np.ndarray:
+    """(F,) True where a face has no area: its computed area lies within float64 rounding of zero.
+
+    Three corners on one line or at one point give an area of exactly 0, or a
+    few units of rounding: about ``eps * R * L`` for a face of longest edge L
+    whose corners lie within R of the origin. Such a face has no normal and
+    no angles. A thin face above that (:func:`degenerate_faces`, a sliver) has
+    both, and a refusal names which of the two it found.
+    """
+    corners = mesh.vertices[mesh.faces]
+    longest = np.sqrt(((np.roll(corners, -1, axis=1) - corners) ** 2).sum(axis=2).max(axis=1, initial=0.0))
+    reach = np.abs(corners).max(axis=(1, 2), initial=0.0)
+    return mesh.face_areas <= ZERO_AREA_ROUNDING * np.finfo(np.float64).eps * reach * longest
 
 
 def merge_identical_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -67,7 +67,7 @@ def test_features_writes_npy(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     "content, message",
-    [(None, "no such file"), ("OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n", "zero-area"), ("garbage\n", "cannot read mesh")],
+    [(None, "no such file"), ("OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n", "of zero area"), ("garbage\n", "cannot read mesh")],
 )
 def test_bad_mesh_gives_message_not_traceback(tmp_path, content, message):
     path = tmp_path / "bad.off"

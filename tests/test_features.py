@@ -417,7 +417,7 @@ def test_invalid_mesh_raises_mesh_error():
     vertices[0] = np.nan
     with pytest.raises(MeshError, match="NaN"):
         features.compute(Mesh(vertices, mesh.faces), cache=False)
-    with pytest.raises(MeshError, match="zero-area"):
+    with pytest.raises(MeshError, match="of zero area"):
         features.compute_groups(Mesh(mesh.vertices, np.vstack([mesh.faces, [[0, 0, 1]]])), ["edge"])
 
 

@@ -186,7 +186,7 @@ def test_a_scene_without_triangles_is_one_clear_error(tmp_path):
 STRAY = [1e9, 1e9, 1e9]
 
 
-@pytest.mark.parametrize("extra_face, message", [(None, None), ("degenerate", "zero-area"), ("repeated", "repeat")])
+@pytest.mark.parametrize("extra_face, message", [(None, None), ("degenerate", "of zero area"), ("repeated", "repeat")])
 def test_an_unreferenced_far_vertex_changes_no_check(extra_face, message):
     # CAD exports leave vertices that no face uses; far away, they once made every face "zero-area"
     base = grid_mesh(4, closed=True)
@@ -222,7 +222,7 @@ def test_repair_drops_an_unreferenced_far_vertex_and_keeps_every_face():
         (np.where(np.arange(12).reshape(4, 3) == 4, np.inf, TETRA_V), TETRA_F, "NaN or infinite"),
         (np.where(np.arange(12).reshape(4, 3) == 4, -1e300, TETRA_V), TETRA_F, "beyond 3.4e\\+38"),
         (TETRA_V, np.vstack([TETRA_F[:3], [1, 2, 7]]), "index missing vertices"),
-        (np.vstack([TETRA_V, [2, 0, 0]]), np.vstack([TETRA_F, [0, 1, 4]]), "zero-area"),
+        (np.vstack([TETRA_V, [2, 0, 0]]), np.vstack([TETRA_F, [0, 1, 4]]), "of zero area"),
         (np.vstack([TETRA_V, [1, 1, 1]]), np.vstack([TETRA_F, [1, 2, 4]]), "non-manifold"),
     ],
 )
@@ -444,3 +444,22 @@ def test_a_folder_or_a_short_file_is_named_as_such(tmp_path):
     (tmp_path / "short.off").write_text(full[: full.rindex("3 ")])  # the last face line gone: the reader stops quietly
     with pytest.raises(MeshError, match="holds only 3 of the 4 face elements its header declares"):
         load_mesh(tmp_path / "short.off")
+
+
+def test_a_refusal_names_faces_of_zero_area_and_slivers_apart():
+    """Three corners on a line have no area; a sliver 1e-12 as high as long has one, and is named a sliver."""
+    from anseg.mesh import zero_area_faces
+
+    base = grid_mesh(4, closed=True)
+    a, b = base.vertices[base.faces[0, :2]]
+    on_line = Mesh(np.vstack([base.vertices, (a + b) / 2]), np.vstack([base.faces, [[base.faces[0, 0], base.faces[0, 1],
+                                                                                   base.n_vertices]]]))
+    assert zero_area_faces(on_line)[-1] and not zero_area_faces(on_line)[:-1].any()
+    with pytest.raises(MeshError, match=r"^1 face of zero area \(first: \d+\)"):
+        on_line.validate()
+    normal = np.cross(b - a, base.face_centroids[0] - a)
+    lifted = (a + b) / 2 + 1e-12 * np.linalg.norm(b - a) * normal / np.linalg.norm(normal)
+    sliver = Mesh(np.vstack([base.vertices, lifted]), on_line.faces)
+    assert not zero_area_faces(sliver).any()
+    with pytest.raises(MeshError, match=r"^1 face thinner than 1e-10 of their longest edge \(slivers; first: \d+\)"):
+        sliver.validate()
