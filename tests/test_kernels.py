@@ -16,7 +16,7 @@ PRINT_STATE = "import json, anseg, torch; from anseg import kernels; torch.ones(
 
 def run(code: str, **env: str) -> subprocess.CompletedProcess:
     clean = {k: v for k, v in os.environ.items() if k not in kernels.PIN and k != kernels.OPT_OUT}
-    return subprocess.run([sys.executable, "-W", "always::anseg.kernels.KernelWarning", "-c", code],
+    return subprocess.run([sys.executable, "-c", code],
                           env={**clean, **env}, capture_output=True, text=True, timeout=120, check=True)
 
 
