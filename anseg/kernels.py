@@ -66,14 +66,18 @@ def isa_level(flags: set[str] | None = None) -> str:
     return reached
 
 
+def cpu_info(field: str) -> str | None:
+    """The first CPU's ``field`` in ``/proc/cpuinfo`` (``model name``, ``flags``), or None where it is absent."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return None
+    return next((line.partition(":")[2].strip() for line in lines if line.split(":")[0].strip() == field), None)
+
+
 def cpu_flags() -> set[str]:
     """The CPU's feature flags from ``/proc/cpuinfo`` (empty where that file is absent)."""
-    try:
-        text = Path("/proc/cpuinfo").read_text()
-    except OSError:
-        return set()
-    line = next((line for line in text.splitlines() if line.startswith("flags")), "")
-    return set(line.partition(":")[2].split())
+    return set((cpu_info("flags") or "").split())
 
 
 def why_not_pinned() -> str | None:
@@ -82,8 +86,9 @@ def why_not_pinned() -> str | None:
         return f"{OPT_OUT}=native"
     if platform.machine() not in ("x86_64", "AMD64"):
         return f"not x86-64 ({platform.machine()})"
-    if isa_level() not in ("x86-64-v3", "x86-64-v4"):
-        return f"this CPU lacks AVX2 ({isa_level()})"
+    level = isa_level()
+    if level not in ("x86-64-v3", "x86-64-v4"):
+        return f"this CPU lacks AVX2 ({level})"
     return None
 
 
@@ -99,6 +104,12 @@ def pin_environment() -> str | None:
         for name, value in PIN.items():
             os.environ.setdefault(name, value)
     return reason
+
+
+def native_environment(environ) -> dict[str, str]:
+    """A copy of ``environ`` for a process that runs each library's own kernels: ``ANSEG_KERNELS=native`` and none of
+    :data:`PIN`'s variables (which a process that imported anseg holds, and its children would inherit)."""
+    return {**{name: value for name, value in environ.items() if name not in PIN}, OPT_OUT: "native"}
 
 
 def pin() -> None:

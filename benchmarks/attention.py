@@ -21,7 +21,8 @@ forward; the scores again and 4 gradient products backward).
 
 from __future__ import annotations
 
-import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+# first: importing stages pins the float kernels (anseg/kernels.py) before NumPy and torch load
+from stages import peak_gflops
 
 # isort: split
 import argparse
@@ -29,7 +30,6 @@ import math
 import time
 
 import torch
-from stages import peak_gflops
 
 from anseg.model import received_attention
 

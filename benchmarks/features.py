@@ -30,7 +30,8 @@ that chose the AGD source count and the SDF ray count.
 
 from __future__ import annotations
 
-import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+# first: importing stages pins the float kernels (anseg/kernels.py) before NumPy and torch load
+from stages import import_from, reference_checkout
 
 # isort: split
 import argparse
@@ -41,7 +42,6 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from stages import import_from, reference_checkout
 
 TIMED_GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd", "smooth", "hks")
 # (target faces of the PSB mesh, times it is split in four): 5K .. 500K faces

@@ -18,7 +18,8 @@ without changing its arithmetic.
 
 from __future__ import annotations
 
-import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+# first: importing stages pins the float kernels (anseg/kernels.py) before NumPy and torch load
+from stages import peak_gflops
 
 # isort: split
 import argparse
@@ -27,7 +28,6 @@ from dataclasses import replace
 
 import numpy as np
 import torch
-from stages import peak_gflops
 from torch.utils.flop_counter import FlopCounterMode
 
 import anseg.train as train

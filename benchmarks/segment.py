@@ -31,7 +31,8 @@ the run the claims ledger quotes for the paper's cost claim).
 
 from __future__ import annotations
 
-import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+# first: importing stages pins the float kernels (anseg/kernels.py) before NumPy and torch load
+from stages import import_from, kernels_of_children, print_stages, reference_checkout, stage_timers
 
 # isort: split
 import argparse
@@ -46,7 +47,6 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
-from stages import import_from, kernels_of_children, print_stages, reference_checkout, stage_timers
 
 
 def pick_mesh(path: str | None, subdivide: int, near: int = 25_000):

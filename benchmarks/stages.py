@@ -42,17 +42,16 @@ def reference_checkout(revision: str | None):
 
 @contextmanager
 def kernels_of_children(kernels: str | None):
-    """While active, the processes started get ``ANSEG_KERNELS=kernels`` (``native``: each library's own kernels,
-    with the pin's variables that this process inherited or set taken away); nothing changes for None."""
+    """While active, the processes started run ``kernels``: None leaves them the pin, ``native`` (the one other
+    choice) gives them each library's own kernels (:func:`anseg.kernels.native_environment`)."""
     import os
 
     if kernels is None:
         yield
         return
     saved = dict(os.environ)
-    for name in _kernels.PIN:
-        os.environ.pop(name, None)
-    os.environ["ANSEG_KERNELS"] = kernels
+    os.environ.clear()
+    os.environ.update(_kernels.native_environment(saved))
     try:
         yield
     finally:

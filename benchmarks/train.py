@@ -23,7 +23,8 @@ one pair can be off by 20 % either way.
 
 from __future__ import annotations
 
-import stages  # noqa: F401  first: it pins the float kernels (anseg/kernels.py) before NumPy and torch load
+# first: importing stages pins the float kernels (anseg/kernels.py) before NumPy and torch load
+from stages import import_from, kernels_of_children, print_stages, reference_checkout, stage_timers
 
 # isort: split
 import argparse
@@ -33,7 +34,6 @@ from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from stages import import_from, kernels_of_children, print_stages, reference_checkout, stage_timers
 
 
 def measure(args, code: str | None, overrides: str) -> tuple[dict, float, str]:

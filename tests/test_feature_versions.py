@@ -48,10 +48,10 @@ def stale_groups(record: dict, computed: dict[str, str]) -> list[str]:
     problems, here = [], kernels.feature_kernels()["kernels"]
     for group, digest in computed.items():
         entry, version = record.get(group, {}), features.GROUP_VERSIONS[group]
-        if entry.get("version") == version and entry.get("digest") != digest and entry.get("kernels") != here:
-            problems.append(f"{group}: recorded under the kernels {entry.get('kernels')}, computed under {here}")
-        elif entry.get("version") == version and entry.get("digest") != digest:
-            problems.append(f"{group}: its output changed at version {version}; raise GROUP_VERSIONS[{group!r}]")
+        if entry.get("version") == version and entry.get("digest") != digest:
+            problems.append(f"{group}: recorded under the kernels {entry.get('kernels')}, computed under {here}"
+                            if entry.get("kernels") != here else
+                            f"{group}: its output changed at version {version}; raise GROUP_VERSIONS[{group!r}]")
         elif entry.get("version") != version:
             problems.append(f"{group}: version {version} is not recorded; rewrite the record "
                             "(python tests/test_feature_versions.py)")

@@ -73,9 +73,8 @@ def psb_digests(data_root) -> dict[str, str]:
 
 def differences(stored: dict, computed: dict[str, str]) -> list[str]:
     """Each digest that differs from the stored one, as a sentence naming both CPUs."""
-    cpus = ", ".join(stored["cpus"])
-    return [f"{name}: {digest[:12]} here ({cpu_model()}, kernels {kernels.in_force()['pin']}), "
-            f"{stored['digests'][name][:12]} on {cpus}"
+    cpus, here = ", ".join(stored["cpus"]), f"{cpu_model()}, kernels {kernels.in_force()['pin']}"
+    return [f"{name}: {digest[:12]} here ({here}), {stored['digests'][name][:12]} on {cpus}"
             for name, digest in computed.items() if stored["digests"].get(name) != digest]
 
 

@@ -156,9 +156,7 @@ def test_the_figures_models_are_those_the_figure_notebooks_render():
 
 def segment_unpinned(name: str, mesh_file, out) -> np.ndarray:
     """``anseg segment --model name mesh_file -o out`` in a process with each library's own kernels; the labels."""
-    env = {**os.environ, "ANSEG_KERNELS": "native", "OMP_NUM_THREADS": "1"}
-    for variable in kernels.PIN:
-        env.pop(variable, None)
+    env = {**kernels.native_environment(os.environ), "OMP_NUM_THREADS": "1"}
     command = "import sys; from anseg.cli import main; sys.exit(main(sys.argv[1:]))"
     subprocess.run([sys.executable, "-c", command, "segment", "--model", name, str(mesh_file), "-o", str(out), "-q"],
                    env=env, check=True, timeout=600)

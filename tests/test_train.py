@@ -145,15 +145,17 @@ def test_trained_on_names_the_gpu_or_the_cpu_model_and_count():
 
 
 def test_the_environment_names_the_cpu_model(monkeypatch, tmp_path):
+    from anseg import kernels
     from anseg.study import store
 
     assert store.environment()["cpu_model"] == store.cpu_model() != ""
     cpuinfo = tmp_path / "cpuinfo"
     cpuinfo.write_text("processor\t: 0\nmodel name\t: Intel(R) Xeon(R) Processor\nflags\t\t: avx512f\n")
-    real_path = store.Path
-    monkeypatch.setattr(store, "Path", lambda p: cpuinfo if p == "/proc/cpuinfo" else real_path(p))
+    real_path = kernels.Path
+    monkeypatch.setattr(kernels, "Path", lambda p: cpuinfo if p == "/proc/cpuinfo" else real_path(p))
     assert store.cpu_model() == "Intel(R) Xeon(R) Processor"
-    monkeypatch.setattr(store, "Path", lambda p: tmp_path / "absent")
+    assert kernels.cpu_flags() == {"avx512f"}
+    monkeypatch.setattr(kernels, "Path", lambda p: tmp_path / "absent")
     assert store.cpu_model() == (store.platform.processor() or store.platform.machine())
 
 

@@ -128,12 +128,7 @@ def cpu_model() -> str:
     difference into another hierarchy, so a run replays bit for bit only on
     the CPU model that trained it.
     """
-    try:
-        lines = Path("/proc/cpuinfo").read_text().splitlines()
-    except OSError:
-        lines = []
-    names = (line.split(":", 1)[1].strip() for line in lines if line.startswith("model name"))
-    return next(names, None) or platform.processor() or platform.machine()
+    return kernels.cpu_info("model name") or platform.processor() or platform.machine()
 
 
 def code_revision(root: Path = REPO) -> dict:
