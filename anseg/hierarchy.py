@@ -30,11 +30,15 @@ if TYPE_CHECKING:
 
 @dataclass
 class Level:
-    """One level: its mesh, feature groups and patch layout; ``record`` leads from it to the next level."""
+    """One level: its mesh, feature groups and patch layout; ``record`` leads from it to the next level.
+
+    A level the network never reads (the input level of a mesh segmented through a collapse,
+    :data:`anseg.pipeline.NETWORK_FACES`) has no groups and no layout (None).
+    """
 
     mesh: Mesh
     groups: dict[str, np.ndarray]
-    layout: PatchLayout
+    layout: PatchLayout | None
     attention: np.ndarray | None = None
     record: CollapseRecord | None = None
     logits: torch.Tensor | None = field(default=None, repr=False)  # kept from the pass that computed the attention

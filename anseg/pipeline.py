@@ -19,11 +19,21 @@ classification, the upsampling through the collapse records and the graph cut. C
   the level-0 statistics. ``"relative"`` (default) reads them against the level's median edge
   length l (log(e_k / l^k) / k), so a giant face shows as a few units, not thousands;
   ``"unit_area"`` keeps the cached values (the paper's reading and ``v1``).
-Measured gains behind these choices: ``docs/decisions.md``.
+* **Large meshes**: the network reads about :data:`NETWORK_FACES` faces at most, about the largest
+  benchmark mesh the models learn from. A larger mesh (a scan, a subdivided model) is first
+  collapsed uniformly (shortest edge first) to that many faces and segmented there, features
+  and all; its class probabilities come back to every input face through that collapse's record
+  (the vote of :func:`anseg.collapse.upsample`, as between levels) and the graph cut runs on the
+  input mesh, so that boundaries follow its edges. Every stage then grows with the faces no faster
+  than the collapse, the carrying back and the graph cut, which are near linear, where the
+  network's global attention over the input level's tokens grows with their square. Meshes at or
+  below the limit (every benchmark mesh) are segmented exactly as before.
+Measured gains behind these choices: ``docs/decisions.md``; the large meshes' times and labels: ``docs/usage.md``.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import pickle
 import warnings
@@ -35,22 +45,23 @@ import torch
 from anseg import collapse, features
 from anseg.cache import atomic_write
 from anseg.cluster import FRAMES, PatchLayout, canonical_mesh, layout
-from anseg.geometry import spectral
+from anseg.geometry import proxy, spectral
 from anseg.geometry.gradient import face_gradient
 from anseg.graphcut import DEFAULT_CONCAVE_DISCOUNT
 from anseg.graphcut import smooth as graph_cut
 from anseg.hierarchy import Hierarchy, Level, pool
 from anseg.mesh import Mesh
 from anseg.model import AttentionSegmenter, Output, SpectralInput, model_config
+from anseg.progress import progress as progress_bar
 from anseg.refine import Refiner
 
 # how Algorithm 1 downsamples: attentive, uniform, or not at all (the input mesh classified directly)
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
 COMBINE = ("coarsest", "all", "decay", "finest")
 LOCAL_SCALES = ("unit_area", "relative")
-# the share of the agd_rel range that the largest piece of a mesh must span, below which segment warns
-AGD_SPAN_WARNING = 0.8
 PASS_SEED_STEP = 1000  # pass p of a test-time ensemble segments with seed + p * this (a collapse uses seed + level)
+# the most faces the network reads (module docstring): at the large-mesh threshold of the features, above every benchmark mesh
+NETWORK_FACES = proxy.LARGE_MESH_FACES
 # SegmentConfig's settings that came after model files and results were written, with the value those ran with: a
 # file or record that lacks one ran with that value, whatever today's default is.
 SEGMENT_SETTINGS_ADDED_LATER = {"once_per_pass": False, "local_scale": "unit_area", "priority": "score",
@@ -206,7 +217,7 @@ class Segmenter:
             # in our words: torch's own message advises an unsafe load
             raise ValueError(f"{path}: not a model written by anseg, or a damaged one ({type(exc).__name__})") from exc
         trained_on = payload.get("feature_code")  # absent in files written before it was recorded
-        if trained_on is not None and trained_on != feature_code():
+        if trained_on is not None and features.comparable(trained_on) != features.comparable(feature_code()):
             raise ValueError(f"{path}: trained on other features ({_differences(trained_on, feature_code())}) "
                              "than this anseg computes; retrain it, or use the anseg version it was made with")
         return cls(
@@ -255,42 +266,26 @@ def input_groups(groups: dict[str, np.ndarray], local_scale: str) -> dict[str, n
     return {**groups, "edge": relative}
 
 
-class DescriptorWarning(UserWarning):
-    """Small separate pieces of a mesh set the range of a global descriptor of the rest of it."""
-
-
-def warn_of_stray_pieces(mesh: Mesh, groups: dict[str, np.ndarray]) -> None:
-    """Warn (:class:`DescriptorWarning`) when the pieces of ``mesh`` apart from its largest set the range of its AGD.
-
-    ``agd_rel`` is scaled to [0, 1] over the whole mesh, and a small piece
-    has a small AGD of its own: a speck beside a shape squeezes the shape's
-    values into a corner of the range the network was trained on, and its
-    labels can all change. The warning says so where the largest piece
-    spans less than :data:`AGD_SPAN_WARNING` of the range.
-    """
-    if "agd" not in groups:
-        return
-    piece = mesh.vertex_components[mesh.faces[:, 0]]  # the pieces the AGD measures one by one
-    n_pieces = len(np.unique(piece))  # a vertex no face uses is a component of its own, but no piece
-    if n_pieces == 1:
-        return
-    largest = piece == np.argmax(np.bincount(piece, mesh.face_areas))
-    relative = groups["agd"][largest, 1]
-    if relative.max() - relative.min() < AGD_SPAN_WARNING:
-        others = 1 - mesh.face_areas[largest].sum() / mesh.face_areas.sum()
-        warnings.warn(f"{n_pieces - 1} separate piece(s) beside the largest, {others:.2%} of the surface, set the range of "
-                      f"its AGD descriptor (it spans {relative.max() - relative.min():.0%} of it), so its labels can all "
-                      "change: remove the stray pieces before segmenting", DescriptorWarning, stacklevel=3)
-
-
 @dataclass
 class Segmentation:
-    """What ``segment`` returns: labels and probabilities on the original faces, and every level."""
+    """What ``segment`` returns: labels and probabilities on the original faces, and every level.
+
+    ``level_faces``: the input face that each face of ``levels[0]`` is, where
+    the levels were built on other faces than the input's (a canonical mesh,
+    whose faces come in another order; the shape without its stray pieces);
+    None where they are the input's. :meth:`on_levels` reads input-face values
+    there.
+    """
 
     labels: np.ndarray
     probabilities: np.ndarray
     unsmoothed_labels: np.ndarray
     levels: Hierarchy = field(repr=False)
+    level_faces: np.ndarray | None = field(default=None, repr=False)
+
+    def on_levels(self, per_input_face: np.ndarray) -> np.ndarray:
+        """Values of the input's faces (labels, probabilities) on the faces of ``levels[0]``."""
+        return per_input_face if self.level_faces is None else per_input_face[self.level_faces]
 
 
 def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, names) -> dict[str, np.ndarray]:
@@ -308,7 +303,7 @@ def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, devi
     x = model.standardize(level_features(level, index, n_levels, model.config.local_scale))
     inputs = {"x": torch.as_tensor(x, device=device), "layout": level.layout}
     if model.network.config.spectral_pairs:
-        area = level.mesh.face_areas
+        area = level.mesh.frame_areas  # a stray piece is outside the basis and weighs nothing (Mesh.stray_faces)
         gradient = None
         if model.network.config.diffusion_gradients:
             operator = face_gradient(level.mesh.unit_area()).tocoo()
@@ -381,12 +376,14 @@ def fill_attention(model: Segmenter, levels: Hierarchy, device="cpu") -> Hierarc
     """Give every level its attention: build_levels computes it only where it drives a collapse.
 
     The coarsest level, and every level of a uniform or random hierarchy, get
-    the model's attention from one forward pass each; returns ``levels``.
+    the model's attention from one forward pass each; returns ``levels``. The
+    input level of a mesh above :data:`NETWORK_FACES` faces has none: the
+    network read its collapse, the next level.
     """
     model.network.eval()
     with torch.no_grad():
         for index, level in enumerate(levels):
-            if level.attention is None:
+            if level.attention is None and level.layout is not None:  # no layout: a large mesh the network never read
                 level.attention = model(**model_inputs(model, level, index, len(levels), device)).attention.cpu().numpy()
     return levels
 
@@ -420,12 +417,21 @@ def class_probabilities(model: Segmenter, levels: Hierarchy, config: SegmentConf
 
 
 def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, groups=None, device="cpu",
-            progress: bool = False, ensemble: tuple[Segmenter, ...] = ()) -> Segmentation:
+            progress: bool | None = False, ensemble: tuple[Segmenter, ...] = (),
+            network_faces: float | None = None) -> Segmentation:
     """Segment one mesh with a trained model: Algorithm 1, lines 1-9.
 
     ``config`` defaults to the model's own (the settings it was trained with);
     pass another to change, e.g., the smoothing weight or the mode.
-    ``progress`` shows the feature groups' bar on a large mesh.
+    ``progress``: the bars of long work on stderr (a large mesh's steps, its
+    feature groups): ``None`` where stderr is a terminal, ``True`` wherever
+    it is (the feature groups' bar stays on terminals), ``False`` never.
+    ``network_faces``: the most faces the network reads (``None``:
+    :data:`NETWORK_FACES`; ``math.inf``: every face, however many); a larger
+    mesh is segmented through one collapse to that many faces (module
+    docstring), and the returned levels start with the input mesh, which no
+    network read (no features, layout nor attention), its record leading to
+    that collapse, and ``groups`` is not read.
     ``ensemble``: more models trained on the same classes and features (other
     seeds); each builds its own hierarchy, and the class probabilities of all
     of them are averaged before the graph cut. The levels returned are
@@ -437,21 +443,39 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     collapse can amplify, and the labels would hang on the input's pose.
     """
     config = config or model.config
+    if (stray := mesh.stray_faces) is not None:
+        # the shape is segmented as a file of it alone would be, and each face of a stray piece (a speck, a far
+        # facet: Mesh.stray_faces) takes the labels of the shape's face nearest to it
+        from scipy.spatial import cKDTree
+
+        shape = np.flatnonzero(~stray)
+        result = segment(mesh.submesh(~stray)[0], model, config, None if groups is None else
+                         {g: block[shape] for g, block in groups.items()}, device, progress, ensemble, network_faces)
+        nearest = np.empty(mesh.n_faces, dtype=np.int64)
+        nearest[shape] = np.arange(len(shape))
+        nearest[stray] = cKDTree(mesh.face_centroids[shape]).query(mesh.face_centroids[stray])[1]
+        return Segmentation(labels=result.labels[nearest], probabilities=result.probabilities[nearest],
+                            unsmoothed_labels=result.unsmoothed_labels[nearest], levels=result.levels,
+                            level_faces=shape[result.on_levels(np.arange(len(shape)))])
     if config.canonical:
         canonical, input_face, pose = canonical_mesh(mesh)
-        result = segment(canonical, model, replace(config, canonical=False), None, device, progress, ensemble)
+        result = segment(canonical, model, replace(config, canonical=False), None, device, progress, ensemble,
+                         network_faces)
         back = np.empty_like(input_face)
         back[input_face] = np.arange(len(input_face))
         levels = Hierarchy([replace(level, mesh=Mesh(pose.undo(level.mesh.vertices), level.mesh.faces))
                             for level in result.levels])
         return Segmentation(labels=result.labels[back], probabilities=result.probabilities[back],
-                            unsmoothed_labels=result.unsmoothed_labels[back], levels=levels)
+                            unsmoothed_labels=result.unsmoothed_labels[back], levels=levels,
+                            level_faces=input_face[result.on_levels(np.arange(len(input_face)))])
     for other in ensemble:
         if other.n_classes != model.n_classes or other.config.groups != model.config.groups:
             raise ValueError("an ensemble's models must share their classes and feature groups")
-    levels = build_levels(mesh, model, config, groups, device, progress)
+    network_faces = NETWORK_FACES if network_faces is None else network_faces
+    if mesh.n_faces > network_faces:
+        return _segment_collapsed(mesh, model, config, int(network_faces), device, progress, ensemble)
+    levels = build_levels(mesh, model, config, groups, device, progress is not False)
     groups = levels[0].groups
-    warn_of_stray_pieces(mesh, groups)
     idle = sum(level.record.n_collapses == 0 for level in levels[:-1])
     if idle:
         warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "
@@ -467,7 +491,39 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     if model.refiner is not None:  # the second stage reads where each face sits relative to the parts found
         own = face_features(groups, config.local_scale)
         probs = model.refiner.refine(mesh, own, probs)
+    return _smoothed(mesh, probs, config, levels)
+
+
+def _smoothed(mesh: Mesh, probs: np.ndarray, config: SegmentConfig, levels: Hierarchy) -> Segmentation:
+    """The segmentation of ``mesh`` from its faces' class probabilities: their argmax, smoothed by the graph cut."""
     raw = probs.argmax(axis=1)
     labels = (graph_cut(mesh, probs, weight=config.smooth_weight, concave_discount=config.concave_discount)
               if config.smooth_weight > 0 else raw)
     return Segmentation(labels=labels, probabilities=probs, unsmoothed_labels=raw, levels=levels)
+
+
+def _segment_collapsed(mesh: Mesh, model: Segmenter, config: SegmentConfig, network_faces: int, device,
+                       progress: bool | None, ensemble: tuple[Segmenter, ...]) -> Segmentation:
+    """:func:`segment` for a mesh above ``network_faces`` faces: on its uniform collapse to that many faces, the class
+    probabilities carried back to its faces and smoothed there (module docstring).
+
+    The collapse's target is a budget, so stopping a few faces above it
+    (no valid collapse left) changes nothing and is not warned of; a mesh
+    with few collapsible edges (most of its faces on boundaries) keeps more.
+    """
+    mesh.validate()
+    with progress_bar(total=3, desc=f"segment {mesh.n_faces} faces", unit="step", show=progress, leave=False) as bar:
+        bar.set_postfix_str(f"collapse to {network_faces} faces")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", collapse.CollapseWarning)
+            coarse, record = collapse.downsample(mesh, None, ratio=network_faces / mesh.n_faces, mode="uniform")
+        bar.update()
+        bar.set_postfix_str("segment the collapse")
+        inner = segment(coarse, model, replace(config, smooth_weight=0.0), None, device, progress, ensemble,
+                        network_faces=math.inf)
+        bar.update()
+        bar.set_postfix_str("graph cut")
+        levels = Hierarchy([Level(mesh, {}, None, record=record), *inner.levels])
+        result = _smoothed(mesh, collapse.upsample(record, inner.probabilities), config, levels)
+        bar.update()
+    return result
