@@ -309,7 +309,7 @@ def layout(
         labels = cluster_faces(features, k=k, seed=seed)
         return patches(sequence(mesh, labels, curve=curve), labels, patch_size)
     if frame == "principal":
-        centroids = principal_frame(mesh.face_centroids, mesh.face_areas)
+        centroids = principal_frame(mesh.face_centroids, mesh.frame_areas)
     else:
         centroids = random_frame(mesh.face_centroids, seed)
     canonical = np.lexsort((np.arange(mesh.n_faces), _curve_position(centroids, curve)))
@@ -372,8 +372,8 @@ def canonical_mesh(mesh: Mesh) -> tuple[Mesh, np.ndarray, Pose]:
     their corners. A file that lists its faces or vertices in another
     order, or its faces the other way round, gives the same mesh too.
     """
-    centre, axes = _principal_axes(mesh.face_centroids, mesh.face_areas)
-    pose = Pose(centre, axes, float(np.sqrt(mesh.face_areas.sum())))
+    centre, axes = _principal_axes(mesh.face_centroids, mesh.frame_areas)
+    pose = Pose(centre, axes, float(np.sqrt(mesh.frame_areas.sum())))
     exact = (mesh.vertices - centre) @ axes / pose.scale
     posed = Mesh(np.round(exact / CANONICAL_STEP) * CANONICAL_STEP, mesh.faces)
     if degenerate_faces(posed).any():
@@ -382,7 +382,7 @@ def canonical_mesh(mesh: Mesh) -> tuple[Mesh, np.ndarray, Pose]:
     new_id = np.empty(mesh.n_vertices, dtype=np.int64)
     new_id[vertex_order] = np.arange(mesh.n_vertices)
     faces = new_id[mesh.faces]
-    if (posed.face_normals * posed.face_areas[:, None] * posed.face_centroids).sum() < 0:  # about the centre, at 0
+    if (posed.face_normals * posed.frame_areas[:, None] * posed.face_centroids).sum() < 0:  # about the centre, at 0
         faces = faces[:, ::-1]
     first = faces.argmin(axis=1)
     faces = np.take_along_axis(faces, (first[:, None] + np.arange(3)) % 3, axis=1)

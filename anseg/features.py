@@ -52,7 +52,12 @@ from anseg.mesh import Mesh, MeshError
 from anseg.parallel import run_parallel
 from anseg.progress import progress as progress_bar
 
-FEATURES_VERSION = 1  # the feature code as a whole; stored keys and model files name it (see :func:`code`)
+FEATURES_VERSION = 2  # the feature code as a whole; stored keys and model files name it (see :func:`code`)
+# Version 2 added the stray-piece rule alone (:attr:`anseg.mesh.Mesh.stray_faces`: a speck or a far facet sets no
+# scale or range of the rest), which computes a mesh without stray pieces bit for bit as version 1 did. No mesh of
+# the benchmark data sets has one (tests/test_datasets.py), so the results and models of version 1 stand for
+# version 2 (:func:`comparable`): the same keys, the same models.
+SAME_WITHOUT_STRAYS = (1, 2)
 
 GROUPS = ("edge", "angles", "ratios", "gc", "sdf", "agd", "smooth", "hks")
 # Each group's version: raise it whenever the group's output on a fixed mesh changes, however little
@@ -160,6 +165,8 @@ class _Geometry:
     def __init__(self, mesh: Mesh, settings: FeatureSettings):
         self.mesh = mesh.unit_area()
         self.settings = settings
+        # the faces that set each descriptor's range: all of them, or those of the mesh without its stray pieces
+        self.shape = None if self.mesh.stray_faces is None else ~self.mesh.stray_faces
 
     @cached_property
     def edge_vectors(self) -> np.ndarray:
@@ -184,7 +191,7 @@ class _Geometry:
     def outward_normals(self) -> np.ndarray:
         """Face normals flipped, if need be, so that the signed volume is positive (outward on closed meshes)."""
         m = self.mesh
-        volume = (m.face_centroids * m.face_normals * m.face_areas[:, None]).sum()
+        volume = (m.face_centroids * m.face_normals * m.frame_areas[:, None]).sum()
         return -m.face_normals if volume < 0 else m.face_normals
 
     @cached_property
@@ -279,8 +286,16 @@ class _Geometry:
         if self.mesh.n_faces > proxy.LARGE_MESH_FACES:
             coarse, face_of = self.proxy
             return coarse.hks[face_of]
-        per_vertex = _heat_kernel_signature(self.mesh, HKS_EIGENPAIRS, np.array(HKS_TIMES))
-        return per_vertex[self.mesh.faces].mean(axis=1)
+        if self.shape is None:
+            per_vertex = _heat_kernel_signature(self.mesh, HKS_EIGENPAIRS, np.array(HKS_TIMES))
+            return per_vertex[self.mesh.faces].mean(axis=1)
+        # the spectrum of the shape alone (a stray piece's own modes would enter the heat trace); stray faces take
+        # the least value of each column, where the shape's heat leaves fastest
+        shape, _ = self.mesh.submesh(self.shape)
+        on_shape = _heat_kernel_signature(shape, HKS_EIGENPAIRS, np.array(HKS_TIMES))[shape.faces].mean(axis=1)
+        out = np.empty((self.mesh.n_faces, on_shape.shape[1]))
+        out[self.shape], out[~self.shape] = on_shape, on_shape.min(axis=0)
+        return out
 
 
 # ------------------------------------------------------------------- groups
@@ -314,7 +329,7 @@ def _gc(g: _Geometry) -> np.ndarray:
     among positives into (0, 1], negative among negatives into [-1, 0), flat
     faces 0).
     """
-    return np.stack([g.gc_slog, _signed_rank(g.face_gaussian_curvature)], axis=1)
+    return np.stack([g.gc_slog, _signed_rank(g.face_gaussian_curvature, g.shape)], axis=1)
 
 
 def _sdf(g: _Geometry) -> np.ndarray:
@@ -325,10 +340,10 @@ def _sdf(g: _Geometry) -> np.ndarray:
     normals are taken outward (flipped when the signed volume is negative).
     ``sdf`` is the absolute value, ``sdf_lognorm`` Shapira's log-normalisation
     log(1 + 4 s) / log 5 of the per-mesh robust (1st-99th percentile) min-max
-    scaled value s.
+    scaled value s (the percentiles of the shape's faces, :attr:`Mesh.stray_faces` apart).
     """
     s = g.sdf
-    low, high = np.percentile(s, [1.0, 99.0])
+    low, high = np.percentile(s if g.shape is None else s[g.shape], [1.0, 99.0])
     scaled = np.clip((s - low) / (high - low), 0.0, 1.0) if high > low else np.zeros_like(s)
     return np.stack([s, np.log1p(4.0 * scaled) / np.log(5.0)], axis=1)
 
@@ -337,11 +352,17 @@ def _agd(g: _Geometry) -> np.ndarray:
     """Average Geodesic Distance (:mod:`anseg.geometry.geodesic`): the area-weighted mean heat-method distance to the shape.
 
     ``agd`` is the absolute value, ``agd_rel`` = (agd - min) / (max - min) per
-    mesh: 0 at the geodesic centre, 1 at the farthest extremity.
+    mesh: 0 at the geodesic centre, 1 at the farthest extremity. The minimum
+    and maximum are the shape's: a stray piece (:attr:`Mesh.stray_faces`) has a
+    small AGD of its own, which would squeeze the shape's values into a corner
+    of the range; its faces are clipped into the shape's range instead.
     """
     a = g.agd
-    span = a.max() - a.min()
-    relative = (a - a.min()) / span if span > 0 else np.zeros_like(a)
+    reference = a if g.shape is None else a[g.shape]
+    span = reference.max() - reference.min()
+    relative = (a - reference.min()) / span if span > 0 else np.zeros_like(a)
+    if g.shape is not None:
+        relative = np.clip(relative, 0.0, 1.0)
     return np.stack([a, relative], axis=1)
 
 
@@ -381,14 +402,19 @@ _GROUP_FUNCTIONS = {"edge": _edge, "angles": _angles, "ratios": _ratios, "gc": _
                     "smooth": _smooth, "hks": _hks}
 
 
-def _signed_rank(values: np.ndarray) -> np.ndarray:
+def _signed_rank(values: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
+    """``gc_rank`` (see :func:`_gc`); with a ``shape`` mask, ranks among the shape's faces, the others placed among them."""
     from scipy.stats import rankdata
 
     out = np.zeros(len(values))
     for sign in (1.0, -1.0):
-        side = np.flatnonzero(sign * values > 0)
-        if len(side):
-            out[side] = sign * rankdata(np.abs(values[side])) / len(side)
+        side = sign * values > 0
+        ranked = np.flatnonzero(side if shape is None else side & shape)
+        if len(ranked):
+            out[ranked] = sign * rankdata(np.abs(values[ranked])) / len(ranked)
+        if shape is not None and len(ranked):
+            placed = np.flatnonzero(side & ~shape)
+            out[placed] = sign * np.searchsorted(np.sort(np.abs(values[ranked])), np.abs(values[placed]), "right") / len(ranked)
     return out
 
 
@@ -411,6 +437,14 @@ def code() -> dict:
     """
     raised = {f"{group}_version": v for group, v in GROUP_VERSIONS.items() if v != 1}
     return {"version": FEATURES_VERSION, **asdict(FeatureSettings()), **raised}
+
+
+def comparable(code: dict) -> dict:
+    """``code`` as :func:`code` or a model file records it (its version under ``version`` or ``features``), with a
+    version of :data:`SAME_WITHOUT_STRAYS` written as the last of them: what decides whether stored work stands for
+    today's."""
+    last = SAME_WITHOUT_STRAYS[-1]
+    return {k: last if k in ("version", "features") and v in SAME_WITHOUT_STRAYS else v for k, v in code.items()}
 
 
 def fingerprint(settings: FeatureSettings | None = None) -> str:

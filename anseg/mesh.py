@@ -35,6 +35,9 @@ DEGENERATE_EPS = 1e-10
 ZERO_AREA_ROUNDING = 4.0
 # repair refuses to drop more than this share of the faces (see repair)
 REPAIR_MAX_DROP = 0.5
+# a piece (faces joined by edges) with less than this share of the faces or the area of the piece with the most
+# faces is a stray piece (see Mesh.stray_faces)
+STRAY_PIECE_SHARE = 0.01
 # the largest coordinate magnitude accepted: float32's largest finite value, so a file in any format can hold the
 # mesh; a product of four coordinate differences (an area squared) stays finite in float64 below it
 MAX_COORDINATE = float(np.finfo(np.float32).max)
@@ -232,10 +235,46 @@ class Mesh:
         graph = coo_matrix((np.ones(f.size), (f.ravel(), np.roll(f, 1, axis=1).ravel())), shape=(self.n_vertices,) * 2)
         return connected_components(graph, directed=False)[1]
 
+    @cached_property
+    def face_pieces(self) -> np.ndarray:
+        """(F,) the piece of each face: its vertices' connected component (numbers as in :attr:`vertex_components`)."""
+        return self.vertex_components[self.faces[:, 0]]
+
+    @cached_property
+    def stray_faces(self) -> np.ndarray | None:
+        """(F,) True on the faces of stray pieces, or None where the mesh has none (every benchmark mesh).
+
+        A stray piece holds less than :data:`STRAY_PIECE_SHARE` of the faces or
+        of the area of the piece with the most faces: a speck, a far facet, a
+        scanner's floater, a ground plane of two triangles. Faces decide which
+        piece is the shape, as they say where the detail was put; a few large
+        triangles can outweigh it in area. Such a
+        piece never sets a scale, frame, range or basis of the rest of the
+        mesh (:attr:`frame_areas`, and the descriptors' ranges in
+        :mod:`anseg.features`), so a file with one more stray facet gets the
+        same features on its shape's faces. A mesh without one is computed as
+        if the rule did not exist, bit for bit.
+        """
+        piece = self.face_pieces
+        if piece.max() == piece.min():
+            return None
+        piece_faces = np.bincount(piece)
+        piece_area = np.bincount(piece, self.face_areas)
+        main = np.argmax(piece_faces)
+        stray = (piece_faces < STRAY_PIECE_SHARE * piece_faces[main]) | (piece_area < STRAY_PIECE_SHARE * piece_area[main])
+        on_faces = stray[piece]  # (a component of unused vertices has no faces: it is no piece)
+        return on_faces if on_faces.any() else None
+
+    @cached_property
+    def frame_areas(self) -> np.ndarray:
+        """(F,) the face areas that set the mesh's frame (its area, centre and axes): zero on :attr:`stray_faces`."""
+        return self.face_areas if self.stray_faces is None else np.where(self.stray_faces, 0.0, self.face_areas)
+
     # ------------------------------------------------------------- utilities
     def unit_area(self) -> "Mesh":
-        """A copy scaled to unit total surface area, centred at the area-weighted centroid, and without unreferenced
-        vertices (they make Laplacians singular): the frame every descriptor is computed in.
+        """A copy scaled to unit surface area, centred at the area-weighted centroid, and without unreferenced
+        vertices (they make Laplacians singular): the frame every descriptor is computed in. Area and centroid are
+        those of the mesh without its :attr:`stray_faces`, which keep their place in that frame.
 
         Made once per mesh (a mesh is immutable), so that the descriptors, the
         eigenbasis and the gradient operator of one level share the copy and
@@ -246,14 +285,22 @@ class Mesh:
 
     @cached_property
     def _unit_area_copy(self) -> "Mesh":
-        area = self.face_areas.sum()
+        areas = self.frame_areas
+        area = areas.sum()
         if not area > 0:
             raise MeshError("mesh has zero total area")
-        centre = (self.face_centroids * self.face_areas[:, None]).sum(axis=0) / area
+        centre = (self.face_centroids * areas[:, None]).sum(axis=0) / area
         scaled = Mesh((self.vertices - centre) / np.sqrt(area), self.faces).without_unused_vertices()
         if scaled.faces is self.faces:
             scaled.__dict__.update({name: self.__dict__[name] for name in _TOPOLOGY & self.__dict__.keys()})
+        scaled.__dict__["stray_faces"] = self.stray_faces  # the same faces, whatever rounding does to the shares
         return scaled
+
+    def submesh(self, faces: np.ndarray) -> tuple["Mesh", np.ndarray]:
+        """The mesh of the faces ``faces`` selects (a boolean mask), without the vertices they leave unused, and
+        each of its vertices' index here."""
+        used, inverse = np.unique(self.faces[faces], return_inverse=True)
+        return Mesh(self.vertices[used], inverse.reshape(-1, 3)), used
 
     def without_unused_vertices(self) -> "Mesh":
         """The mesh without the vertices no face uses, the others in their order (``self`` when it has none)."""
@@ -313,7 +360,7 @@ class Mesh:
 
 # the cached tables that depend on the faces alone, which a moved or scaled copy with the same faces shares
 _TOPOLOGY = frozenset({"_edge_table", "edge_face_counts", "edge_faces", "face_neighbors", "interior_edges",
-                       "corner_fans", "boundary_loop_count", "vertex_components"})
+                       "corner_fans", "boundary_loop_count", "vertex_components", "face_pieces"})
 
 
 def _count_distinct_rows(rows: np.ndarray, n_values: int) -> int:

@@ -59,8 +59,6 @@ from anseg.refine import Refiner
 DOWNSAMPLING_MODES = ("nonuniform", "uniform", "none")
 COMBINE = ("coarsest", "all", "decay", "finest")
 LOCAL_SCALES = ("unit_area", "relative")
-# the share of the agd_rel range that the largest piece of a mesh must span, below which segment warns
-AGD_SPAN_WARNING = 0.8
 PASS_SEED_STEP = 1000  # pass p of a test-time ensemble segments with seed + p * this (a collapse uses seed + level)
 # the most faces the network reads (module docstring): at the large-mesh threshold of the features, above every benchmark mesh
 NETWORK_FACES = proxy.LARGE_MESH_FACES
@@ -219,7 +217,7 @@ class Segmenter:
             # in our words: torch's own message advises an unsafe load
             raise ValueError(f"{path}: not a model written by anseg, or a damaged one ({type(exc).__name__})") from exc
         trained_on = payload.get("feature_code")  # absent in files written before it was recorded
-        if trained_on is not None and trained_on != feature_code():
+        if trained_on is not None and features.comparable(trained_on) != features.comparable(feature_code()):
             raise ValueError(f"{path}: trained on other features ({_differences(trained_on, feature_code())}) "
                              "than this anseg computes; retrain it, or use the anseg version it was made with")
         return cls(
@@ -268,42 +266,26 @@ def input_groups(groups: dict[str, np.ndarray], local_scale: str) -> dict[str, n
     return {**groups, "edge": relative}
 
 
-class DescriptorWarning(UserWarning):
-    """Small separate pieces of a mesh set the range of a global descriptor of the rest of it."""
-
-
-def warn_of_stray_pieces(mesh: Mesh, groups: dict[str, np.ndarray]) -> None:
-    """Warn (:class:`DescriptorWarning`) when the pieces of ``mesh`` apart from its largest set the range of its AGD.
-
-    ``agd_rel`` is scaled to [0, 1] over the whole mesh, and a small piece
-    has a small AGD of its own: a speck beside a shape squeezes the shape's
-    values into a corner of the range the network was trained on, and its
-    labels can all change. The warning says so where the largest piece
-    spans less than :data:`AGD_SPAN_WARNING` of the range.
-    """
-    if "agd" not in groups:
-        return
-    piece = mesh.vertex_components[mesh.faces[:, 0]]  # the pieces the AGD measures one by one
-    n_pieces = len(np.unique(piece))  # a vertex no face uses is a component of its own, but no piece
-    if n_pieces == 1:
-        return
-    largest = piece == np.argmax(np.bincount(piece, mesh.face_areas))
-    relative = groups["agd"][largest, 1]
-    if relative.max() - relative.min() < AGD_SPAN_WARNING:
-        others = 1 - mesh.face_areas[largest].sum() / mesh.face_areas.sum()
-        warnings.warn(f"{n_pieces - 1} separate piece(s) beside the largest, {others:.2%} of the surface, set the range of "
-                      f"its AGD descriptor (it spans {relative.max() - relative.min():.0%} of it), so its labels can all "
-                      "change: remove the stray pieces before segmenting", DescriptorWarning, stacklevel=3)
-
-
 @dataclass
 class Segmentation:
-    """What ``segment`` returns: labels and probabilities on the original faces, and every level."""
+    """What ``segment`` returns: labels and probabilities on the original faces, and every level.
+
+    ``level_faces``: the input face that each face of ``levels[0]`` is, where
+    the levels were built on other faces than the input's (a canonical mesh,
+    whose faces come in another order; the shape without its stray pieces);
+    None where they are the input's. :meth:`on_levels` reads input-face values
+    there.
+    """
 
     labels: np.ndarray
     probabilities: np.ndarray
     unsmoothed_labels: np.ndarray
     levels: Hierarchy = field(repr=False)
+    level_faces: np.ndarray | None = field(default=None, repr=False)
+
+    def on_levels(self, per_input_face: np.ndarray) -> np.ndarray:
+        """Values of the input's faces (labels, probabilities) on the faces of ``levels[0]``."""
+        return per_input_face if self.level_faces is None else per_input_face[self.level_faces]
 
 
 def coarse_groups(level: Level, coarse: Mesh, record: collapse.CollapseRecord, names) -> dict[str, np.ndarray]:
@@ -321,7 +303,7 @@ def model_inputs(model: Segmenter, level: Level, index: int, n_levels: int, devi
     x = model.standardize(level_features(level, index, n_levels, model.config.local_scale))
     inputs = {"x": torch.as_tensor(x, device=device), "layout": level.layout}
     if model.network.config.spectral_pairs:
-        area = level.mesh.face_areas
+        area = level.mesh.frame_areas  # a stray piece is outside the basis and weighs nothing (Mesh.stray_faces)
         gradient = None
         if model.network.config.diffusion_gradients:
             operator = face_gradient(level.mesh.unit_area()).tocoo()
@@ -461,6 +443,20 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
     collapse can amplify, and the labels would hang on the input's pose.
     """
     config = config or model.config
+    if (stray := mesh.stray_faces) is not None:
+        # the shape is segmented as a file of it alone would be, and each face of a stray piece (a speck, a far
+        # facet: Mesh.stray_faces) takes the labels of the shape's face nearest to it
+        from scipy.spatial import cKDTree
+
+        shape = np.flatnonzero(~stray)
+        result = segment(mesh.submesh(~stray)[0], model, config, None if groups is None else
+                         {g: block[shape] for g, block in groups.items()}, device, progress, ensemble, network_faces)
+        nearest = np.empty(mesh.n_faces, dtype=np.int64)
+        nearest[shape] = np.arange(len(shape))
+        nearest[stray] = cKDTree(mesh.face_centroids[shape]).query(mesh.face_centroids[stray])[1]
+        return Segmentation(labels=result.labels[nearest], probabilities=result.probabilities[nearest],
+                            unsmoothed_labels=result.unsmoothed_labels[nearest], levels=result.levels,
+                            level_faces=shape[result.on_levels(np.arange(len(shape)))])
     if config.canonical:
         canonical, input_face, pose = canonical_mesh(mesh)
         result = segment(canonical, model, replace(config, canonical=False), None, device, progress, ensemble,
@@ -470,7 +466,8 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
         levels = Hierarchy([replace(level, mesh=Mesh(pose.undo(level.mesh.vertices), level.mesh.faces))
                             for level in result.levels])
         return Segmentation(labels=result.labels[back], probabilities=result.probabilities[back],
-                            unsmoothed_labels=result.unsmoothed_labels[back], levels=levels)
+                            unsmoothed_labels=result.unsmoothed_labels[back], levels=levels,
+                            level_faces=input_face[result.on_levels(np.arange(len(input_face)))])
     for other in ensemble:
         if other.n_classes != model.n_classes or other.config.groups != model.config.groups:
             raise ValueError("an ensemble's models must share their classes and feature groups")
@@ -479,7 +476,6 @@ def segment(mesh: Mesh, model: Segmenter, config: SegmentConfig | None = None, g
         return _segment_collapsed(mesh, model, config, int(network_faces), device, progress, ensemble)
     levels = build_levels(mesh, model, config, groups, device, progress is not False)
     groups = levels[0].groups
-    warn_of_stray_pieces(mesh, groups)
     idle = sum(level.record.n_collapses == 0 for level in levels[:-1])
     if idle:
         warnings.warn(f"{mesh.n_faces} faces are too few for {config.cycles} cycles at ratio {config.ratio}: "

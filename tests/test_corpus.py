@@ -16,8 +16,7 @@ Where ``--repair`` should rescue a mesh (a far facet that float32 rounds to a po
 it does, and the faces it did not touch get the labels the same mesh gets without them.
 A run expected to fail runs in a fresh process, so that its stderr is the user's (it fails before torch is imported,
 so this costs little); a run expected to succeed goes through :func:`anseg.cli.main` in this process, as the other
-command-line tests do, where an exception out of main() fails the test. One known defect is marked xfail (strict):
-see ``STRAY_RELABELS``.
+command-line tests do, where an exception out of main() fails the test.
 """
 
 from __future__ import annotations
@@ -614,13 +613,9 @@ def test_repair_rescues_and_the_untouched_faces_keep_their_labels(tmp_path, caps
     assert np.array_equal(labels[built.untouched], labels_of_the_clean_mesh(built, tmp_path, capsys))
 
 
-STRAY_RELABELS = ("known defect, open (warned of: test_a_stray_piece_is_warned_of): one stray triangle relabels the "
-                  "whole shape (every capsule face, head/torso -> hand): features' "
-                  "agd_rel is (agd - min) / (max - min) over all faces, and the stray component's own AGD (about 0.0003 "
-                  "for the speck, 0.22 for the far facet, against 0.43-0.48 on the capsule) becomes the minimum, so the "
-                  "capsule's agd_rel is squeezed from [0, 1] into [0.83-0.91, 1]")
-STRAY = [pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=STRAY_RELABELS))
-         for name in ("far facet, off (float64)", "tiny triangle nearby")] + ["huge offset, off", "tiny scale, off"]
+# a far facet, a speck beside the shape, the shape moved far away or shrunk: the stray pieces (Mesh.stray_faces) set
+# no scale, frame or range of the shape's features, and a new frame rounds no label away
+STRAY = ["far facet, off (float64)", "tiny triangle nearby", "huge offset, off", "tiny scale, off"]
 
 
 @pytest.mark.parametrize("name", STRAY)
@@ -631,12 +626,6 @@ def test_a_stray_facet_or_a_new_frame_leaves_the_labels_of_the_rest(tmp_path, ca
     labels = np.loadtxt(outputs[1], dtype=np.int64, ndmin=1)[built.untouched]
     same = np.mean(labels == labels_of_the_clean_mesh(built, tmp_path, capsys))
     assert same >= 0.8, f"{same:.0%} of the shape's faces keep their label"
-
-
-@pytest.mark.parametrize("name", ["far facet, off (float64)", "tiny triangle nearby"])
-def test_a_stray_piece_is_warned_of(tmp_path, capsys, name):
-    _, run, _ = run_and_check(CORPUS[name], "segment", tmp_path, capsys)
-    assert "anseg segment: warning:" in run.err and "remove the stray pieces" in run.err, run.err
 
 
 HTML = {"obj quads and materials": ("segment", OK), "glb scene": ("segment", OK),

@@ -203,6 +203,35 @@ def test_agd_stays_within_each_connected_component():
     np.testing.assert_allclose(agd.mean(), np.pi / 2 * radius, rtol=0.05)
 
 
+def with_a_far_facet(mesh: Mesh, size: float = 0.05) -> Mesh:
+    """``mesh`` and one triangle of its own far from it: a stray piece (less than 1 % of the mesh's area)."""
+    corner = mesh.vertices.max(axis=0) + 5.0
+    facet = corner + size * np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    return Mesh(np.vstack([mesh.vertices, facet]), np.vstack([mesh.faces, mesh.n_vertices + np.arange(3)[None]]))
+
+
+@pytest.mark.parametrize("group", features.GROUPS)
+def test_a_stray_facet_leaves_the_features_of_the_shape(group):
+    """No group lets a stray piece set a scale, frame, range or basis of the shape (before: agd_rel, sdf_lognorm's
+    percentiles, gc_rank, the unit-area scale and centre, the HKS's heat trace)."""
+    shape = blob()
+    alone = features.compute_groups(shape, [group], **FAST)[group]
+    beside = features.compute_groups(with_a_far_facet(shape), [group], **FAST)[group]
+    assert_same_features(beside[:-1], alone, 1e-6)
+    if group == "agd":  # the facet's own AGD is small: its agd_rel is clipped to the shape's 0, not below it
+        assert beside[-1, 1] == 0.0
+
+
+def test_stray_pieces_are_small_beside_the_largest_and_set_no_frame():
+    shape = blob()
+    assert shape.stray_faces is None and shape.frame_areas is shape.face_areas
+    two = trimesh.util.concatenate([trimesh.creation.icosphere(2), trimesh.creation.icosphere(2).apply_translation([5, 0, 0])])
+    assert Mesh(two.vertices, two.faces).stray_faces is None  # a shape of two equal parts has no stray piece
+    stray = with_a_far_facet(shape)
+    assert stray.stray_faces.sum() == 1 and stray.stray_faces[-1] and stray.frame_areas[-1] == 0
+    np.testing.assert_allclose(stray.unit_area().vertices[: shape.n_vertices], shape.unit_area().vertices, atol=1e-12)
+
+
 def test_smoothing_keeps_the_integral_and_lowers_the_spread():
     mesh = blob()
     blocks = features.compute_groups(mesh, ["gc", "smooth"], smooth_radii=(0.05, 0.3), **FAST)

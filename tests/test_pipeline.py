@@ -200,21 +200,25 @@ def test_a_canonical_segmentation_does_not_hang_on_the_pose_the_file_order_or_th
                   Mesh(Rotation.random(random_state=1).apply(mesh.vertices) * 30.0 + 7.0, mesh.faces),
                   Mesh(mesh.vertices * [1.0, -1.0, 1.0], mesh.faces[:, ::-1])):
         assert np.array_equal(segment(moved, model, config).labels, base.labels)
-    # the levels come back in the input's pose
-    assert np.allclose(np.sort(base.levels[0].mesh.face_centroids, axis=0), np.sort(mesh.face_centroids, axis=0), atol=1e-5)
+    # the levels come back in the input's pose, their faces in the canonical order, which level_faces leads back from
+    assert np.allclose(base.levels[0].mesh.face_centroids, mesh.face_centroids[base.level_faces], atol=1e-5)
+    assert not np.array_equal(base.level_faces, np.arange(mesh.n_faces))
 
 
-def test_a_speck_beside_the_shape_is_warned_of_and_a_shape_alone_is_not(model, shapes):
-    import warnings
-
-    from anseg.pipeline import DescriptorWarning
+def test_a_speck_far_from_the_shape_leaves_its_features_and_labels(model, shapes):
+    """A stray facet sets no range of the shape's descriptors (before, agd_rel of the shape was squeezed towards 1) and
+    changes none of its labels (before, they could all change)."""
+    from anseg import features
 
     mesh = shapes[0].mesh
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", DescriptorWarning)
-        segment(mesh, model)
     far = mesh.vertices.max(axis=0) + 10.0
     speck = Mesh(np.vstack([mesh.vertices, far, far + [1e-3, 0, 0], far + [0, 1e-3, 0]]),
                  np.vstack([mesh.faces, [[mesh.n_vertices, mesh.n_vertices + 1, mesh.n_vertices + 2]]]))
-    with pytest.warns(DescriptorWarning, match="separate piece"):
-        segment(speck, model)
+    alone, beside = (features.compute(m, groups=model.config.groups, cache=False) for m in (mesh, speck))
+    assert np.allclose(beside[: mesh.n_faces], alone, rtol=1e-5, atol=1e-6)
+    # the shape is segmented as it is alone, and the speck takes the label of the shape's face nearest to it
+    result, alone = segment(speck, model), segment(mesh, model)
+    assert np.array_equal(result.labels[: mesh.n_faces], alone.labels)
+    nearest = np.argmin(np.linalg.norm(mesh.face_centroids - speck.face_centroids[-1], axis=1))
+    assert result.labels[-1] == alone.labels[nearest]
+    assert np.array_equal(result.on_levels(result.labels), alone.labels)  # the levels are the shape's

@@ -16,7 +16,29 @@ from anseg.mesh import Mesh
 
 
 def average_geodesic_distance(mesh: Mesh, n_sources: int) -> np.ndarray:
-    """(V,) area-weighted mean heat-method geodesic distance to the rest of the vertex's connected component."""
+    """(V,) area-weighted mean heat-method geodesic distance to the rest of the vertex's connected component.
+
+    The mesh's stray pieces (:attr:`Mesh.stray_faces`) are measured apart
+    from the rest, with a solver of their own: the heat method's time step
+    follows the mean edge length of the mesh it is given, so a far facet's
+    long edges would otherwise change every distance of the shape. Sources
+    are shared out in proportion to the area beside that of the shape, so the
+    shape gets as many as it gets alone.
+    """
+    stray = mesh.stray_faces
+    if stray is None:
+        return _agd_by_piece(mesh, n_sources)
+    total = np.zeros(mesh.n_vertices)
+    shape_area = mesh.frame_areas.sum()
+    for part in (~stray, stray):
+        piece, vertex = mesh.submesh(part)
+        total[vertex] = _agd_by_piece(piece, n_sources, shape_area)
+    return total
+
+
+def _agd_by_piece(mesh: Mesh, n_sources: int, reference_area: float | None = None) -> np.ndarray:
+    """:func:`average_geodesic_distance` of each connected component, with ``n_sources`` per ``reference_area`` of
+    surface (default: the mesh's own area)."""
     import potpourri3d as pp3d
 
     v, f = mesh.vertices, mesh.faces
@@ -24,12 +46,13 @@ def average_geodesic_distance(mesh: Mesh, n_sources: int) -> np.ndarray:
     component = mesh.vertex_components
     n_components = component.max() + 1
     component_area = np.bincount(component, vertex_area)
+    reference_area = component_area.sum() if reference_area is None else reference_area
     solver = pp3d.MeshHeatMethodDistanceSolver(v, f)
     total = np.zeros(mesh.n_vertices)
     for c in range(n_components):
         members = np.flatnonzero(component == c) if n_components > 1 else slice(None)
         # sources shared out by area, at least one per component (the solver leaves other components meaningless)
-        share = max(1, round(n_sources * component_area[c] / component_area.sum()))
+        share = max(1, round(n_sources * component_area[c] / reference_area))
         local_sources, weights = farthest_point_sources(v[members], vertex_area[members], share)
         sources = np.arange(mesh.n_vertices)[members][local_sources]
         for s, w in zip(sources, weights):

@@ -28,7 +28,7 @@ from anseg.cache import (
     write_checked_array,
 )
 from anseg.geometry import proxy
-from anseg.mesh import Mesh
+from anseg.mesh import STRAY_PIECE_SHARE, Mesh
 
 SPECTRUM_PAIRS = 64  # eigenpairs of the HKS and of the network's spectrum
 EIGEN_TOLERANCE = 1e-6  # relative accuracy of the eigenvalues (see laplacian_eigenpairs)
@@ -104,7 +104,10 @@ def face_spectrum(mesh: Mesh, n_pairs: int = SPECTRUM_PAIRS, cache: bool = True)
     last eigenvector (they carry nothing through a product with the basis).
     Above :data:`anseg.geometry.proxy.LARGE_MESH_FACES` faces the basis is solved
     on the same uniform collapse the large-mesh HKS uses and each face takes
-    its face's values there: the low eigenvectors are smooth.
+    its face's values there: the low eigenvectors are smooth. A mesh's stray
+    pieces (:attr:`anseg.mesh.Mesh.stray_faces`) are left out of the solve and
+    get zero rows: each would bring a zero eigenvalue of its own and push one of
+    the shape's modes out of the basis.
     """
     path = _cache_path(mesh, n_pairs) if cache else None
     if path is not None and (stored := read_checked_array(path, (mesh.n_faces + 1, n_pairs))) is not None:
@@ -113,8 +116,14 @@ def face_spectrum(mesh: Mesh, n_pairs: int = SPECTRUM_PAIRS, cache: bool = True)
     if surface.n_faces > proxy.LARGE_MESH_FACES:
         coarse, face_of = proxy.collapse_to_proxy(surface)
         surface = coarse.unit_area()
-    values, vectors = laplacian_eigenpairs(surface, n_pairs)
-    per_face = vectors[surface.faces].mean(axis=1)
+    if surface.stray_faces is None:
+        values, vectors = laplacian_eigenpairs(surface, n_pairs)
+        per_face = vectors[surface.faces].mean(axis=1)
+    else:
+        shape, _ = surface.submesh(~surface.stray_faces)
+        values, vectors = laplacian_eigenpairs(shape, n_pairs)
+        per_face = np.zeros((surface.n_faces, len(values)))
+        per_face[~surface.stray_faces] = vectors[shape.faces].mean(axis=1)
     if face_of is not None:
         per_face = per_face[face_of]
     stored = np.zeros((mesh.n_faces + 1, n_pairs), dtype=np.float32)
@@ -126,7 +135,9 @@ def face_spectrum(mesh: Mesh, n_pairs: int = SPECTRUM_PAIRS, cache: bool = True)
 
 
 def _cache_path(mesh: Mesh, n_pairs: int):
-    digest = hashlib.sha256(f"anseg-spectrum v{SPECTRUM_VERSION}|{sorted(library_versions().items())}|{n_pairs}|"
+    # the stray-piece rule keys the cache too: a mesh with stray pieces was solved whole before it existed
+    digest = hashlib.sha256(f"anseg-spectrum v{SPECTRUM_VERSION} strays<{STRAY_PIECE_SHARE}|"
+                            f"{sorted(library_versions().items())}|{n_pairs}|"
                             f"{mesh.vertices.shape}{mesh.faces.shape}|".encode())
     digest.update(mesh.vertices.tobytes())
     digest.update(mesh.faces.tobytes())

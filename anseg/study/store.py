@@ -34,7 +34,8 @@ REPO = Path(__file__).resolve().parents[2]
 # the value the older results ran with: at that value a field stays out of the key.
 SETTINGS_ADDED_LATER = {"segment": SEGMENT_SETTINGS_ADDED_LATER, "train": TRAIN_SETTINGS_ADDED_LATER}
 # The feature code every stored result ran with: its version and FeatureSettings' defaults. A result computed
-# from other features has other keys, so no stored result or model is reused across a change of features.
+# from other features has other keys, so no stored result or model is reused across a change of features
+# (a version that computes the same features on the benchmark meshes is no change: features.comparable).
 FEATURES_OF_STORED_RESULTS = {"version": 1, "sdf_rays": 16, "sdf_cone_degrees": 120.0, "agd_sources": 64,
                               "smooth_radii": (0.03, 0.1, 0.3)}
 
@@ -58,7 +59,7 @@ class Experiment:
         """
         keyed = {part: {k: v for k, v in asdict(config).items() if SETTINGS_ADDED_LATER[part].get(k, object()) != v}
                  for part, config in (("segment", self.segment), ("train", self.train))}
-        if (code := features.code()) != FEATURES_OF_STORED_RESULTS:
+        if features.comparable(code := features.code()) != features.comparable(FEATURES_OF_STORED_RESULTS):
             keyed["features"] = code
         text = json.dumps({"dataset": self.dataset, "category": self.category, "split": self.split_index, **keyed,
                            **({"options": dataset_options} if dataset_options else {})}, sort_keys=True)
