@@ -312,9 +312,12 @@ class Mesh:
 
         Checks, in order: not empty, finite coordinates no larger than
         :data:`MAX_COORDINATE` (beyond it the geometry overflows), face indices in
-        range, no degenerate faces (:func:`degenerate_faces`: each face judged
-        by its own edges), no repeated faces, no non-manifold edges,
-        no non-manifold vertices. A mesh is treated as immutable (its tables
+        range, no faces of zero area (:func:`zero_area_faces`: no normal, no
+        angles), no repeated faces, no non-manifold edges, no non-manifold
+        vertices. Slivers, faces with an area however thin
+        (:func:`degenerate_faces`), pass: CAD exports and scans hold them, and
+        the Laplacians turn intrinsic on such a mesh
+        (:func:`anseg.geometry.spectral.cotan_laplacian`). A mesh is treated as immutable (its tables
         are cached), so one that passed is not checked again: segmenting a
         mesh asks several stages for a valid mesh, and only the first pays.
         """
@@ -338,10 +341,6 @@ class Mesh:
         if len(flat):
             raise MeshError(f"{_faces(len(flat))} of zero area (first: {int(flat[0])}); "
                             f"{REPAIR_HINT} drops them and keeps a map to the input faces")
-        thin = np.flatnonzero(degenerate_faces(self))
-        if len(thin):
-            raise MeshError(f"{_faces(len(thin))} thinner than {DEGENERATE_EPS:.0e} of their longest edge (slivers; first: "
-                            f"{int(thin[0])}); {REPAIR_HINT} drops them and keeps a map to the input faces")
         repeated = self.n_faces - _count_distinct_rows(np.sort(self.faces, axis=1), self.n_vertices)
         if repeated:
             raise MeshError(f"{repeated} faces repeat another face's three vertices; "
@@ -422,21 +421,24 @@ def merge_identical_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[n
     return vertices[np.sort(first)], rank[inverse.reshape(-1)][faces]
 
 
-def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
-    """Merge duplicate vertices, drop degenerate and repeated faces, and cut non-manifold edges and vertices apart.
+def repair(mesh: Mesh, drop_slivers: bool = False) -> tuple[Mesh, np.ndarray]:
+    """Merge duplicate vertices, drop faces of zero area and repeated faces, and cut non-manifold edges and vertices apart.
 
     Returns the repaired mesh and ``face_map``, the input index of every
     repaired face (so that ``labels[face_map]`` carries per-face input labels
     over, and :func:`labels_for_input_faces` carries labels back). Vertices
     that no face uses are dropped first; vertices with identical
-    coordinates are merged; faces that then repeat a vertex, are degenerate
-    (:func:`degenerate_faces`, each judged by its own edges) or repeat
-    another face's vertex set are dropped (the first copy is kept) and the
+    coordinates are merged; faces that then repeat a vertex, have no area
+    (:func:`zero_area_faces`) or repeat another face's vertex set are dropped
+    (the first copy is kept) and the
     vertices only they used are removed. Repair refuses (MeshError) to drop
     more than :data:`REPAIR_MAX_DROP` (half) of the faces: a mesh that is
     mostly degenerate or doubled is damaged or misread (e.g. coordinates
     rounded to float32 far from the origin), and what would be left is
-    another mesh, not this one repaired. Then every sheet of faces
+    another mesh, not this one repaired. Slivers (:func:`degenerate_faces`)
+    pass :meth:`Mesh.validate` and are kept, unless ``drop_slivers``: the data
+    set readers drop them, as they did when validation refused them, so that
+    the benchmark meshes stay those the stored runs read. Then every sheet of faces
     around a non-manifold edge or vertex gets its own copies of the vertices
     there (:attr:`Mesh.corner_fans`), so that the result is manifold and the
     faces keep their order. Non-finite or oversized coordinates of used vertices and bad
@@ -454,7 +456,7 @@ def repair(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     vertices, faces = merge_identical_vertices(mesh.vertices[used], faces.reshape(-1, 3))
     merged = Mesh(vertices, faces)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
-    keep &= ~degenerate_faces(merged)
+    keep &= ~(zero_area_faces(merged) | (degenerate_faces(merged) if drop_slivers else False))
     _, unique_first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
     not_duplicate = np.zeros(len(faces), dtype=bool)
     not_duplicate[unique_first] = True

@@ -170,3 +170,20 @@ def grid_mesh(n: int = 4, closed: bool = False) -> Mesh:
     a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
     faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
     return Mesh(vertices, faces)
+
+
+def with_caps(mesh: Mesh, n: int, height: float = 1e-12) -> Mesh:
+    """``mesh`` with ``n`` CAD-style slivers: in each of ``n`` faces (x, y, z), a vertex p lifted ``height`` times |xy|
+    off the middle of the edge xy, the face split into (x, p, z) and (p, y, z), and the cap (p, x, y) between them and
+    the neighbour across xy (manifold; the cap has an area, an angle near 180 degrees and a normal)."""
+    faces, vertices = [list(face) for face in mesh.faces], list(mesh.vertices)
+    for index in np.linspace(0, mesh.n_faces - 1, n).astype(int):
+        x, y, z = mesh.faces[index]
+        a, b = mesh.vertices[x], mesh.vertices[y]
+        normal = mesh.face_normals[index]
+        vertices.append((a + b) / 2 + height * np.linalg.norm(b - a) * normal)
+        p = len(vertices) - 1
+        faces[index] = [x, p, z]
+        faces += [[p, y, z], [p, x, y]]
+    return Mesh(np.array(vertices), np.array(faces))
+

@@ -30,8 +30,10 @@ from typing import Callable
 
 import numpy as np
 import pytest
+from conftest import with_caps
 
 from anseg.cli import main
+from anseg.mesh import Mesh
 from anseg.mesh_files import load_mesh
 
 MODEL = "psb/Teddy"
@@ -294,6 +296,13 @@ def needles():
     return capsule_and(sliver, (rod.vertices + [-1.0, 0, 0], rod.faces))
 
 
+def capped_capsule():
+    """The capsule with 40 caps (conftest.with_caps): slivers, not faces of zero area."""
+    c = capsule()
+    capped = with_caps(Mesh(c.vertices, c.faces), 40)
+    return capped.vertices, capped.faces
+
+
 def rescued_case(file_type: str):
     """A capsule with a facet a billion units away, in a format of float32 coordinates (STL, a GLB of one mesh): there
     its corners round to one point, a degenerate face that plain runs refuse and --repair drops alone."""
@@ -428,6 +437,8 @@ CORPUS = {
     "degenerate and repeated faces, off": Case(degenerate_off, "degenerate.off", REFUSED, OK),
     "collapsed quads, obj": Case(degenerate_obj, "collapsed.obj", REFUSED, OK),
     "needles and slivers": Case(off_case(needles), "needles.off", OK, OK),
+    # a CAD export's caps: faces 1e-12 as high as long, with an area and a normal (refused before, as "degenerate")
+    "40 caps, off": Case(off_case(capped_capsule), "caps.off", OK, OK),
     "a nan vertex, obj": Case(nan_vertex_obj, "nan.obj", REFUSED, REFUSED),
     "a face index past the end, off": Case(bad_index_off, "index.off", REFUSED, REFUSED),
 }

@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import grid_mesh
+from conftest import grid_mesh, with_caps
 
 from anseg.mesh import MAX_COORDINATE, Mesh, MeshError, repair
 from anseg.mesh_files import load_mesh, save_mesh
@@ -446,9 +446,9 @@ def test_a_folder_or_a_short_file_is_named_as_such(tmp_path):
         load_mesh(tmp_path / "short.off")
 
 
-def test_a_refusal_names_faces_of_zero_area_and_slivers_apart():
-    """Three corners on a line have no area; a sliver 1e-12 as high as long has one, and is named a sliver."""
-    from anseg.mesh import zero_area_faces
+def test_faces_of_zero_area_are_refused_and_slivers_pass():
+    """Three corners on a line have no area and are refused; caps 1e-12 as high as long have one, and pass."""
+    from anseg.mesh import degenerate_faces, zero_area_faces
 
     base = grid_mesh(4, closed=True)
     a, b = base.vertices[base.faces[0, :2]]
@@ -457,9 +457,13 @@ def test_a_refusal_names_faces_of_zero_area_and_slivers_apart():
     assert zero_area_faces(on_line)[-1] and not zero_area_faces(on_line)[:-1].any()
     with pytest.raises(MeshError, match=r"^1 face of zero area \(first: \d+\)"):
         on_line.validate()
-    normal = np.cross(b - a, base.face_centroids[0] - a)
-    lifted = (a + b) / 2 + 1e-12 * np.linalg.norm(b - a) * normal / np.linalg.norm(normal)
-    sliver = Mesh(np.vstack([base.vertices, lifted]), on_line.faces)
-    assert not zero_area_faces(sliver).any()
-    with pytest.raises(MeshError, match=r"^1 face thinner than 1e-10 of their longest edge \(slivers; first: \d+\)"):
-        sliver.validate()
+    capped = with_caps(base, 3)
+    assert degenerate_faces(capped).sum() == 3 and not zero_area_faces(capped).any()
+    capped.validate()
+
+
+def test_repair_keeps_slivers_unless_asked_to_drop_them():
+    """Slivers pass validation, so repair keeps them; the data set readers drop them (drop_slivers), as before."""
+    capped = with_caps(grid_mesh(4, closed=True), 3)
+    assert len(repair(capped)[1]) == capped.n_faces
+    assert len(repair(capped, drop_slivers=True)[1]) == capped.n_faces - 3

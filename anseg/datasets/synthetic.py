@@ -340,7 +340,7 @@ def _mesh_shape(shape: Shape, n_faces: int) -> Mesh:
     # a grid value of exactly zero would make coincident vertices
     values[np.abs(values) < 1e-9 * cell] = 1e-9 * cell
     vertices, faces, _ = igl.marching_cubes(values, grid, int(counts[0]), int(counts[1]), int(counts[2]), 0.0)
-    mesh, _ = repair(Mesh(vertices, _largest_component(faces, len(vertices))))
+    mesh, _ = repair(Mesh(vertices, _largest_component(faces, len(vertices))), drop_slivers=True)
     mesh = _relax(mesh, shape, _RELAX_STEPS)
     if _signed_volume(mesh) < 0:
         mesh = Mesh(mesh.vertices, mesh.faces[:, ::-1])

@@ -33,6 +33,7 @@ from anseg.mesh import STRAY_PIECE_SHARE, Mesh
 SPECTRUM_PAIRS = 64  # eigenpairs of the HKS and of the network's spectrum
 EIGEN_TOLERANCE = 1e-6  # relative accuracy of the eigenvalues (see laplacian_eigenpairs)
 SPECTRUM_VERSION = 1
+MOLLIFY_FACTOR = 1e-5  # robust_laplacian's edge lengthening on meshes with slivers, relative to the mean edge (its default)
 
 
 def factor_spd(matrix):
@@ -45,6 +46,31 @@ def factor_spd(matrix):
     from scipy.sparse.linalg import splu
 
     return splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+
+
+def cotan_laplacian(mesh: Mesh):
+    """The cotan Laplacian (V, V), negative semi-definite as libigl's ``cotmatrix``, which it is on a mesh without slivers.
+
+    On a mesh with slivers (:func:`anseg.mesh.degenerate_faces`: faces with an
+    area, however small, thinner than 1e-10 of their longest edge), the
+    intrinsic mollified Laplacian of Sharp and Crane (2020, the
+    ``robust_laplacian`` package) instead: a cap's angle near 180 degrees has a
+    cotangent beyond -1e12, which cancels the other weights at its vertices and
+    leaves the factorisations singular; on the intrinsic Delaunay triangulation
+    of the same vertices, every edge first lengthened by a tiny epsilon, no
+    such angle remains. Every benchmark mesh is without slivers (the data set
+    readers drop them), so their operators are libigl's, bit for bit.
+    """
+    import igl
+
+    from anseg.mesh import degenerate_faces
+
+    if not degenerate_faces(mesh).any():
+        return igl.cotmatrix(mesh.vertices, mesh.faces)
+    import robust_laplacian
+
+    stiffness, _ = robust_laplacian.mesh_laplacian(mesh.vertices, mesh.faces, mollify_factor=MOLLIFY_FACTOR)
+    return -stiffness.tocsc()
 
 
 def laplacian_eigenpairs(mesh: Mesh, n_pairs: int) -> tuple[np.ndarray, np.ndarray]:
@@ -72,7 +98,7 @@ def _solve(mesh: Mesh, n_pairs: int) -> tuple[np.ndarray, np.ndarray]:
     from scipy.sparse.linalg import LinearOperator, eigsh
 
     v, f = mesh.vertices, mesh.faces
-    stiffness = -igl.cotmatrix(v, f).tocsc()  # positive semi-definite
+    stiffness = -cotan_laplacian(mesh).tocsc()  # positive semi-definite
     mass = igl.massmatrix(v, f, igl.MASSMATRIX_TYPE_VORONOI).tocsc()
     k = min(n_pairs, mesh.n_vertices - 2)
     # shift-invert just below 0: the smallest eigenvalues, with a positive definite factorisation (our SPD
