@@ -3,7 +3,8 @@
 For the categories whose network fits its training meshes and still misses
 new ones, more kinds of shape and triangulation than the few training
 meshes show. A copy is the mesh scaled by a factor per axis of a random
-frame (up to :data:`MAX_STRETCH` either way; the descriptors are computed on
+frame (up to :data:`MAX_STRETCH` either way by default, ``stretch`` where given: the strength the
+accuracy screens vary, ``train.augment_stretch``; the descriptors are computed on
 the unit-area mesh, so only the proportions change), then collapsed at
 random to :data:`KEEP` of its faces by the collapse engine itself (every
 edge in a random order, so the triangles change everywhere, not only where
@@ -27,22 +28,22 @@ MAX_STRETCH = 1.25
 KEEP = 0.8
 
 
-def stretched(mesh: Mesh, rng: np.random.Generator) -> Mesh:
-    """``mesh`` scaled by a factor in [1 / MAX_STRETCH, MAX_STRETCH] along each axis of a random frame."""
+def stretched(mesh: Mesh, rng: np.random.Generator, stretch: float = MAX_STRETCH) -> Mesh:
+    """``mesh`` scaled by a factor in [1 / stretch, stretch] along each axis of a random frame."""
     from scipy.spatial.transform import Rotation
 
     axes = Rotation.random(random_state=rng).as_matrix()
-    factors = np.exp(rng.uniform(-np.log(MAX_STRETCH), np.log(MAX_STRETCH), size=3))
+    factors = np.exp(rng.uniform(-np.log(stretch), np.log(stretch), size=3))
     return Mesh(((mesh.vertices @ axes) * factors) @ axes.T, mesh.faces)
 
 
-def augmented(item, copies: int, seed: int = 0) -> list:
+def augmented(item, copies: int, seed: int = 0, stretch: float = MAX_STRETCH) -> list:
     """``copies`` training copies of a labelled mesh (``.mesh``, ``.labels``, ``.label_names``, ``.name``), each named
     after it with ``+copy<k>``; the same for a given ``seed`` and name."""
     out = []
     for k in range(copies):
         rng = np.random.default_rng([seed, k, *item.name.encode()])
-        mesh = stretched(item.mesh, rng)
+        mesh = stretched(item.mesh, rng, stretch)
         with warnings.catch_warnings():  # a target missed by a few faces changes nothing here
             warnings.simplefilter("ignore", collapse.CollapseWarning)
             coarse, record = collapse.downsample(mesh, None, ratio=KEEP, mode="random", seed=int(rng.integers(2**31)))

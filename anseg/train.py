@@ -39,7 +39,7 @@ import torch
 import torch.nn.functional as F
 
 from anseg import collapse, features
-from anseg.augment import augmented
+from anseg.augment import MAX_STRETCH, augmented
 from anseg.cache import atomic_write
 from anseg.cluster import PatchLayout
 from anseg.geometry.spectral import SPECTRUM_PAIRS
@@ -62,7 +62,7 @@ LAYOUT_SEED_STEP = 7919  # rebuild r of a training with new_layouts lays out wit
 # anseg.pipeline.SEGMENT_SETTINGS_ADDED_LATER).
 TRAIN_SETTINGS_ADDED_LATER = {"embed_norm": False, "schedule": "constant", "detach_share": False, "average_last": 0,
                               "diffusion_blocks": 0, "diffusion_gradients": False, "new_layouts": False,
-                              "second_stage_folds": 0, "augment_copies": 0}
+                              "second_stage_folds": 0, "augment_copies": 0, "augment_stretch": MAX_STRETCH}
 
 
 @dataclass
@@ -85,8 +85,9 @@ class TrainConfig:
     ``diffusion_gradients`` their gradient features (off). ``second_stage_folds``
     > 0 adds the second stage of :mod:`anseg.refine`, cross-fitted over that
     many folds of the training meshes (off by default). ``augment_copies``
-    adds that many copies of every training mesh, stretched and tessellated
-    anew (:mod:`anseg.augment`; off by default). ``new_layouts``
+    adds that many copies of every training mesh, stretched (by up to
+    ``augment_stretch`` either way along each axis of a random frame) and
+    tessellated anew (:mod:`anseg.augment`; off by default). ``new_layouts``
     rebuilds every hierarchy, the input level's layout included, every
     ``recollapse_every`` epochs with another layout seed (other K-means
     starts, and with ``layout_frame="random"`` another frame for the token
@@ -112,6 +113,7 @@ class TrainConfig:
     new_layouts: bool = False
     second_stage_folds: int = 0
     augment_copies: int = 0
+    augment_stretch: float = MAX_STRETCH
     seed: int = 0
     device: str = "auto"
 
@@ -120,6 +122,8 @@ class TrainConfig:
             raise ValueError("epochs and recollapse_every must be >= 1")
         if self.augment_copies < 0:
             raise ValueError(f"augment_copies must be >= 0, got {self.augment_copies}")
+        if not self.augment_stretch >= 1.0:
+            raise ValueError(f"augment_stretch must be >= 1 (1: no stretch), got {self.augment_stretch}")
         if self.second_stage_folds == 1 or self.second_stage_folds < 0:
             raise ValueError(f"second_stage_folds must be 0 (no second stage) or at least 2, got {self.second_stage_folds}")
         if self.average_last < 0:
@@ -249,7 +253,8 @@ def fit_and_time(
     device = resolve_device(train.device)
     seed_everything(train.seed)
     originals = list(train_set)
-    train_set = [*originals, *(copy for item in originals for copy in augmented(item, train.augment_copies, train.seed))]
+    copies = (augmented(item, train.augment_copies, train.seed, train.augment_stretch) for item in originals)
+    train_set = [*originals, *(copy for made in copies for copy in made)]
     groups = level_zero_features(train_set, config, progress=progress)
     mean, std = feature_statistics([input_groups(g, config.local_scale) for g in groups])
     network = AttentionSegmenter(

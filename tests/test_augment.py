@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from anseg import datasets
@@ -25,6 +26,11 @@ def test_a_stretch_is_linear_and_bounded_per_axis():
     singular = np.linalg.svd(linear, compute_uv=False)
     assert np.all(singular <= MAX_STRETCH + 1e-9) and np.all(singular >= 1 / MAX_STRETCH - 1e-9)
     assert not np.allclose(singular, 1.0)
+    stronger = np.linalg.svd(np.linalg.lstsq(item.mesh.vertices, stretched(item.mesh, np.random.default_rng(0), 2.0).vertices,
+                                             rcond=None)[0], compute_uv=False)
+    assert stronger.max() > MAX_STRETCH and np.all(stronger <= 2.0 + 1e-9)  # train.augment_stretch sets the bound
+    assert np.allclose(np.linalg.svd(np.linalg.lstsq(item.mesh.vertices, stretched(item.mesh, rng, 1.0).vertices,
+                                                     rcond=None)[0], compute_uv=False), 1.0)
 
 
 def test_copies_are_new_tessellations_whose_labels_keep_each_parts_share_of_the_area():
@@ -47,6 +53,8 @@ def test_training_with_copies_sees_them_and_stays_off_by_default(monkeypatch):
 
     torch.set_num_threads(1)
     assert TrainConfig().augment_copies == 0
+    with pytest.raises(ValueError, match="augment_stretch"):
+        TrainConfig(augment_stretch=0.5)
     seen = []
     real = train_module.level_zero_features
     monkeypatch.setattr(train_module, "level_zero_features",
