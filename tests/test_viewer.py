@@ -1,7 +1,9 @@
-"""The standalone HTML view: self-contained, with its legend, and drawn in the label colours by a real browser."""
+"""The standalone HTML view: self-contained, with its legend, and in a real browser the labelled mesh large, every
+other view one click away."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import subprocess
@@ -10,14 +12,8 @@ import sys
 import numpy as np
 import pytest
 import torch
-from conftest import (
-    headless_chromium,
-    needs_chromium,
-    off_machine,
-    offline_python,
-    page_requests,
-    screenshot_folder,
-)
+from conftest import needs_chromium, off_machine, offline_python, page_requests
+from viewing import Browser, keep, label_hits, made_segmentation, screenshot_when, sectors, wait, window_share
 
 from anseg import datasets, viewer
 from anseg.pipeline import SegmentConfig, segment
@@ -72,46 +68,125 @@ def test_the_page_is_self_contained_with_a_legend(page):
     assert not [text[m.start():m.end() + 60] for m in LOADS.finditer(text)]  # nothing fetched from a network
     assert "default-src 'none'" in text  # and the browser is told to fetch nothing that is not in the page
     assert "&lt;b&gt;&amp;odd&lt;/b&gt;" in text and "<b>&odd</b>" not in text
-    assert text.count("coarser levels") == 1
+    assert text.count("each higher level a coarser one") == 1
     n_panels = len(viewer.panels(result, len(names)))
     assert n_panels == 2 * len(result.levels) + 1  # labels and attention per level, and the confidence
+    assert text.count('data-level="') == len(result.levels) and text.count('data-kind="') == 3
 
 
-def _screenshot(path, name: str, folder):
-    """Headless Chromium's picture of a page opened with no network, kept in ``$ANSEG_SCREENSHOTS`` when that is set.
+@contextlib.contextmanager
+def _opened(path, folder):
+    """The page in headless Chromium once it shows its first view, opened with no network.
 
-    Fails when the page asked for anything off this machine (a favicon included).
+    Fails, once the browser is closed, when the page asked for anything off this machine (a favicon included).
     """
-    from PIL import Image
+    browser = Browser(folder)
+    try:
+        browser.call("Page.navigate", url=path.as_uri())
+        wait(lambda: _shown(browser) == "labels 0", 120, "the page's first view")
+        yield browser
+    finally:
+        browser.close()
+    assert not off_machine(page_requests(browser.net_log, "file://")), "the page asked for something off this machine"
 
-    out = screenshot_folder(folder)
-    net_log = folder / f"{name}.netlog.json"
-    subprocess.run(headless_chromium(f"--log-net-log={net_log}", "--virtual-time-budget=8000", "--window-size=1200,800",
-                                     f"--screenshot={out / name}", path.as_uri()), capture_output=True, timeout=120, check=True)
-    assert not off_machine(page_requests(net_log, "file://")), "the page asked for something off this machine"
-    return np.asarray(Image.open(out / name).convert("RGB")).astype(int)
+
+def _shown(browser) -> str | None:
+    return browser.js("document.documentElement.dataset.ansegShown")
 
 
-def _assert_drawn_in(picture: np.ndarray, labels: np.ndarray, n_names: int):
-    assert (picture.reshape(-1, 3).std(axis=0) > 10).all(), "a blank page"
-    used = palette(n_names)[np.unique(labels)]
-    # lighting shades a face's colour, so look for pixels near the hue of a predicted label, in the 3D view's area
-    lower_half = picture[250:].reshape(-1, 3)
-    hits = [int((np.abs(lower_half - colour).sum(axis=1) < 60).sum()) for colour in used]
-    assert max(hits) > 200, f"no label colour drawn: {hits}"
+def _click(browser, selector: str, shows: str):
+    """Click the page's button ``selector`` and wait until the page says it shows ``shows`` ("colouring level")."""
+    browser.js(f"document.querySelector('#anseg-legend {selector}').click(); true")
+    wait(lambda: _shown(browser) == shows, 30, f"the page to show {shows}")
+
+
+def _picture(browser, name: str, folder) -> np.ndarray:
+    """The window once the view has drawn, kept as ``name`` in the screenshot folder."""
+    view = browser.box("#anseg-view")
+    picture = screenshot_when(browser, lambda shot: window_share(shot, view) > 0.01, 60, "the view to draw", folder)
+    keep(name, picture, folder)
+    return picture
+
+
+def _assert_shows(picture, view, labels, n_names: int, share: float):
+    """The mesh covers at least ``share`` of the window, is framed to its view, and shows every label of ``labels``."""
+    assert window_share(picture, view) >= share, f"the mesh covers {window_share(picture, view):.1%} of the window"
+    x, y, w, h = view
+    drawn = (255 - picture[y:y + h, x:x + w].astype(int)).sum(axis=2) > 30
+    rows, columns = np.flatnonzero(drawn.any(axis=1)), np.flatnonzero(drawn.any(axis=0))
+    assert max((rows[-1] - rows[0]) / h, (columns[-1] - columns[0]) / w) > 0.85, "the mesh is not framed to its view"
+    hits = label_hits(picture, view, labels, n_names)
+    assert min(hits.values()) > 200, f"pixels of each label's colour: {hits}"
 
 
 @needs_chromium
-def test_a_browser_draws_the_mesh_in_the_label_colours(page, tmp_path):
+def test_the_page_shows_the_labelled_mesh_large_and_every_view_one_click_away(tmp_path):
+    """A flattened sphere in five sectors, seen from above: the page opens on its labels, turns, and switches."""
+    result = made_segmentation(subdivisions=4, n_levels=3, n_labels=5, flatten=0.6)
+    names = ["one", "two", "three", "four", "five"]
+    path = viewer.write_html(result, names, tmp_path / "view.html")
+    with _opened(path, tmp_path) as browser:
+        view = browser.box("#anseg-view")
+        first = _picture(browser, "viewer_labels.png", tmp_path)
+        _assert_shows(first, view, result.labels, len(names), 0.25)
+        x, y, w, h = view
+        drag = [("mousePressed", 0), *(("mouseMoved", step) for step in range(1, 11)), ("mouseReleased", 10)]
+        for kind, step in drag:  # a drag to the right and down, in ten moves
+            browser.call("Input.dispatchMouseEvent", type=kind, x=x + w // 2 + 15 * step, y=y + h // 2 + 6 * step,
+                         button="left", buttons=int(kind != "mouseReleased"), clickCount=1)
+        turned = _picture(browser, "viewer_turned.png", tmp_path)
+        assert (np.abs(turned.astype(int) - first).max(axis=2) > 30).mean() > 0.05, "a drag did not turn the mesh"
+        _click(browser, "[data-front]", "labels 0")
+        assert (np.abs(_picture(browser, "viewer_front.png", tmp_path).astype(int) - first).max(axis=2) > 30).mean() < 0.01
+
+        views = {}
+        for selector, shows in [('[data-kind="attention"]', "attention 0"), ('[data-level="2"]', "attention 2"),
+                                ('[data-kind="confidence"]', "confidence 0"), ('[data-level="1"]', "labels 1")]:
+            _click(browser, selector, shows)
+            views[shows] = _picture(browser, f"viewer_{shows.replace(' ', '_')}.png", tmp_path)
+            assert window_share(views[shows], view) >= 0.25, f"{shows}: the mesh covers too little of the window"
+        # the attention and the confidence leave the label colours; the labels of a coarser level keep them
+        before = sum(label_hits(first, view, result.labels, len(names)).values())
+        for shows in ("attention 0", "attention 2", "confidence 0"):
+            assert sum(label_hits(views[shows], view, result.labels, len(names)).values()) < before / 5, shows
+        _assert_shows(views["labels 1"], view, result.labels, len(names), 0.25)
+
+
+@needs_chromium
+def test_a_browser_draws_the_figure_in_its_label_colours(page, tmp_path):
     path, result, names = page
-    _assert_drawn_in(_screenshot(path, "viewer.png", tmp_path), result.labels, len(names))
+    with _opened(path, tmp_path) as browser:
+        _assert_shows(_picture(browser, "viewer.png", tmp_path), browser.box("#anseg-view"), result.labels, len(names), 0.05)
 
 
 @needs_chromium
 def test_a_browser_draws_a_repaired_stl_scan_from_the_command_line(scan_page, tmp_path):
     path, labels, names = scan_page
-    assert "anseg-legend" in path.read_text()
-    _assert_drawn_in(_screenshot(path, "viewer_scan_stl.png", tmp_path), labels, len(names))
+    with _opened(path, tmp_path) as browser:
+        picture = _picture(browser, "viewer_scan_stl.png", tmp_path)
+        _assert_shows(picture, browser.box("#anseg-view"), labels, len(names), 0.05)
+
+
+@needs_chromium
+def test_the_page_of_a_psb_teddy_shows_it_large_in_every_label_colour(data_root, tmp_path):
+    """`anseg segment --model psb/Teddy teddy.off --html teddy.html` on PSB Teddy 161, the page opened at 1400 x 900.
+
+    A quarter of the window is what a shape as stout as this teddy covers
+    once framed; a slimmer one fills the view's height and covers less
+    (``results/benchmarks/page_size_teddy.txt`` has all twenty).
+    """
+    from anseg.cli import main
+    from anseg.mesh_files import save_mesh
+    from anseg.pipeline import Segmenter
+
+    teddy = next(m for m in datasets.load("psb", category="Teddy", split="all", root=data_root) if m.name == "Teddy/161")
+    save_mesh(tmp_path / "teddy.off", teddy.mesh)
+    assert main(["segment", "--model", "psb/Teddy", str(tmp_path / "teddy.off"), "--html", str(tmp_path / "teddy.html"),
+                 "-o", str(tmp_path / "teddy.ply")]) == 0
+    labels = np.loadtxt(tmp_path / "teddy.txt", dtype=int)
+    with _opened(tmp_path / "teddy.html", tmp_path) as browser:
+        picture = _picture(browser, "viewer_teddy.png", tmp_path)
+        _assert_shows(picture, browser.box("#anseg-view"), labels, Segmenter.pretrained("psb/Teddy").n_classes, 0.25)
 
 
 def test_the_command_line_writes_a_page_without_reaching_off_the_machine(page, tmp_path):
@@ -131,55 +206,67 @@ def test_the_command_line_writes_a_page_without_reaching_off_the_machine(page, t
     assert (tmp_path / "view.html").is_file()
 
 
-def test_the_live_view_follows_its_slider_and_colouring(page):
+def test_the_live_view_follows_its_buttons_and_frames_each_mesh(page):
     _, result, names = page
     box = viewer.explore(result, names, jupyter_backend="static")
-    (slider, choice), plotter = box.children[0].children, box.plotter
+    plotter = box.plotter
     shown = lambda: plotter.actors["mesh"].mapper.dataset
     assert shown().n_cells == result.levels[0].mesh.n_faces
-    slider.value = len(result.levels) - 1
-    assert shown().n_cells == result.levels[-1].mesh.n_faces
-    choice.value = "confidence"  # the input level's only
-    assert slider.value == 0 and shown().n_cells == result.levels[0].mesh.n_faces
-    confidence = shown().cell_data["colours"].copy()
-    choice.value = "labels"
-    assert not np.array_equal(shown().cell_data["colours"], confidence)
+    labels = shown().cell_data["colours"].copy()
+    box.level.value = len(result.levels) - 1
+    assert shown().n_cells == result.levels[-1].mesh.n_faces and box.colour_by.value == "labels"
+    box.colour_by.value = "confidence"  # the input level's only
+    assert box.level.value == 0 and shown().n_cells == result.levels[0].mesh.n_faces
+    assert not np.array_equal(shown().cell_data["colours"], labels)
+    box.level.value = 1  # no confidence there: the labels
+    assert box.colour_by.value == "labels" and shown().n_cells == result.levels[1].mesh.n_faces
+    # framed: every point in view, the mesh filling the view's height or width but for the margin
+    camera, points = plotter.camera, np.asarray(shown().points)
+    ahead = np.subtract(camera.focal_point, camera.position)
+    ahead /= np.linalg.norm(ahead)
+    up = np.asarray(camera.up)
+    right = np.cross(ahead, up)
+    depth = (points - camera.position) @ ahead
+    width, height = plotter.window_size
+    tangent = max(np.abs((points - camera.position) @ right / depth).max() * height / width,
+                  np.abs((points - camera.position) @ up / depth).max())
+    assert 0.9 < tangent / np.tan(np.radians(camera.view_angle / 2)) < 1
     plotter.close()
 
 
-def _synthetic(subdivisions: int = 3, n_levels: int = 2, attention=True, probabilities=True, stray=False):
-    """A Segmentation built by hand, no model: an icosphere labelled by the sign of x, with uniform collapses.
+def test_each_button_shows_a_panel():
+    """A colouring keeps the level or takes the nearest it has; a level keeps the colouring or falls back on the labels."""
+    keys = [("labels", 0), ("labels", 1), ("labels", 2), ("attention", 2), ("confidence", 0)]
+    switches = viewer._switches(keys)
+    assert switches[1] == {"kind": {"labels": 1, "attention": 3, "confidence": 4}, "level": {0: 0, 1: 1, 2: 2}}
+    assert switches[3]["level"] == {0: 0, 1: 1, 2: 3} and switches[4]["level"] == {0: 4, 1: 1, 2: 2}
+    assert all(switch["kind"][kind] == i and switch["level"][level] == i
+               for i, (switch, (kind, level)) in enumerate(zip(switches, keys)))  # its own buttons keep a panel
 
-    ``attention``: True for every level, or the levels that get one; ``stray``: a far vertex that no face uses.
-    """
-    import trimesh
 
-    from anseg import collapse
-    from anseg.hierarchy import Hierarchy, Level
+def test_the_first_view_faces_the_widest_side_upright():
     from anseg.mesh import Mesh
-    from anseg.pipeline import Segmentation
 
-    sphere = trimesh.creation.icosphere(subdivisions)
-    vertices = np.vstack([sphere.vertices, [[1e6, -1e6, 1e6]]]) if stray else sphere.vertices
-    mesh = Mesh(vertices, sphere.faces)
-    rng = np.random.default_rng(0)
-    levels, current = [], mesh
-    for index in range(n_levels):
-        has_attention = attention is True or index in attention
-        levels.append(Level(current, {}, None, attention=rng.uniform(0.1, 1.0, current.n_faces) if has_attention else None))
-        if index < n_levels - 1:
-            current, levels[-1].record = collapse.downsample(current, None, ratio=0.5, mode="uniform")
-    labels = (mesh.face_centroids[:, 0] > 0).astype(np.int64)
-    probs = np.column_stack([1 - labels, labels]) * 0.6 + 0.2 if probabilities else None
-    return Segmentation(labels=labels, probabilities=probs, unsmoothed_labels=labels, levels=Hierarchy(levels))
+    def box(sides):
+        corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float) * sides
+        return Mesh(corners, np.array([[0, 1, 2], [3, 4, 5], [5, 6, 7]]))
+
+    position, focal, up = viewer._front_view(box([0.8, 1.0, 0.4]))  # a teddy's proportions
+    assert np.allclose(focal, [0.4, 0.5, 0.2])
+    for sides, look, stand in [([0.8, 1.0, 0.4], [0, 0, 1], [0, 1, 0]),  # a teddy, standing on y as in PSB
+                               ([0.8, 0.4, 1.6], [0, 1, 0], [0, 0, 1]),  # a figure standing on z, as the synthetic ones
+                               ([1.6, 0.3, 0.4], [0, 1, 0], [0, 0, 1]),  # longest along x: lying, as x is never up
+                               ([1.0, 0.5, 0.2], [0, 0, 1], [0, 1, 0]),  # a pair of glasses, level
+                               ([0.5, 0.8, 0.9], [1, 0, 0], [0, 0, 1])]:  # a vase on z, seen from its side
+        position, focal, up = viewer._front_view(box(sides))
+        towards = np.subtract(position, focal)
+        assert np.allclose(towards / np.linalg.norm(towards), look) and np.allclose(up, stand), sides
 
 
 def _legend_notes(path) -> list[str]:
     import html
-    import json
 
-    legend = json.loads(re.search(r"box\.innerHTML = (\".*?\"); document", path.read_text()).group(1).replace("<\\/", "</"))
-    return [html.unescape(note) for note in re.findall(r'<p class="anseg-note"[^>]*>(.*?)</p>', legend)]
+    return [html.unescape(note) for note in re.findall(r'<p class="anseg-note">(.*?)</p>', path.read_text())]
 
 
 def _payload(path) -> int:
@@ -187,52 +274,80 @@ def _payload(path) -> int:
     return len(re.search(r'const base64Str = "([^"]*)"', path.read_text()).group(1))
 
 
+def _scene(path) -> dict:
+    """The scene the page's vtk.js loads: its index.json, from the zip the page holds in base64."""
+    import base64
+    import io
+    import json
+    import zipfile
+
+    archive = zipfile.ZipFile(io.BytesIO(base64.b64decode(re.search(r'const base64Str = "([^"]*)"', path.read_text()).group(1))))
+    return json.loads(archive.read("index.json"))
+
+
+def test_the_page_holds_each_levels_mesh_once(tmp_path):
+    """The panels of one level colour one mesh: the file holds its points and triangles once, each panel's colours."""
+    result = made_segmentation(n_levels=3)
+    scene = _scene(viewer.write_html(result, ["a", "b"], tmp_path / "view.html"))
+    [renderer] = scene["scene"]["dependencies"]
+    actors = [d for d in renderer["dependencies"] if d["type"].endswith("Actor")]
+    datasets = [d["dependencies"][0]["properties"] for a in actors for d in a["dependencies"]
+                if d["type"].endswith("Mapper")]
+    assert len(actors) == len(viewer.panels(result, 2)) == 3 + 3 + 1
+    assert len({d["points"]["hash"] for d in datasets}) == len({d["polys"]["hash"] for d in datasets}) == 3
+    assert len({d["fields"][0]["hash"] for d in datasets}) == len(actors)
+    assert set(scene["hashes"]) == {d["points"]["hash"] for d in datasets} | {d["polys"]["hash"] for d in datasets} | {
+        d["fields"][0]["hash"] for d in datasets}
+
+
 def test_a_large_mesh_is_drawn_decimated_and_the_legend_says_so(tmp_path, monkeypatch):
-    result = _synthetic(subdivisions=4)  # 5120 faces; the panels hold 3 x 5120 + 2 x 2560
+    result = made_segmentation(subdivisions=4)  # 5120 faces, and 2560 on its coarser level
     full = viewer.write_html(result, ["a", "b"], tmp_path / "full.html")
     assert _legend_notes(full) == []
     monkeypatch.setattr(viewer, "DISPLAY_MAX_FACES", 2000)
     light = viewer.write_html(result, ["a", "b"], tmp_path / "light.html")
     [note] = _legend_notes(light)
     drawn, held = (int(n.replace(",", "")) for n in re.search(r"decimated to ([\d,]+) faces, of the ([\d,]+)", note).groups())
-    assert drawn <= 2000 and held == 3 * 5120 + 2 * 2560
-    assert "5,120 with 400" in note  # the input mesh, as drawn on each of its three panels
-    assert _payload(light) < _payload(full) / 4  # a tenth of the faces drawn, and what every scene holds
+    assert drawn <= 2000 and held == 5120 + 2560  # each level's mesh counted once
+    assert "5,120 with 1,000" in note  # the input mesh, as drawn on each of its three panels
+    assert _payload(light) < _payload(full) / 3  # a quarter of the faces drawn
     assert len(result.labels) == result.levels[0].mesh.n_faces  # the data keep one label per input face
 
-    # each drawn face has the colour of the input faces it covers: the label of its side of x = 0
+    # each drawn face has the colour of the input faces it covers: the label of its side of y = 0
     shown, _ = viewer._for_display(viewer.panels(result, 2), 2000)
-    row, column, mesh, rgb = shown[0]
-    assert (row, column, mesh.n_faces) == (0, 0, 400)
-    expected = palette(2)[(mesh.face_centroids[:, 0] > 0).astype(int)]
+    kind, level, mesh, rgb = shown[0]
+    assert (kind, level, mesh.n_faces) == ("labels", 0, 1000)
+    assert shown[len(result.levels)][2] is mesh  # the input mesh's attention: the same decimated mesh
+    expected = palette(2)[sectors(mesh.face_centroids, 2)]
     assert (rgb == expected).all(axis=1).mean() > 0.95
 
 
 def test_below_the_threshold_the_page_draws_every_face():
-    result = _synthetic(subdivisions=3)
+    result = made_segmentation(subdivisions=3)
     held = viewer.panels(result, 2)
-    total = sum(mesh.n_faces for _, _, mesh, _ in held)
+    total = sum(level.mesh.n_faces for level in result.levels)  # each level's mesh once
     shown, note = viewer._for_display(held, total)
     assert note is None
-    assert [(r, c, m, rgb) for r, c, m, rgb in shown] == [(r, c, m, rgb) for r, c, m, rgb in held]  # the same objects
-    # above it, the smaller panels stay whole and the larger share the rest evenly
+    assert [(k, n, m, rgb) for k, n, m, rgb in shown] == [(k, n, m, rgb) for k, n, m, rgb in held]  # the same objects
+    assert viewer._for_display(held, total - 1)[1] is not None
+    # above it, the smaller meshes stay whole and the larger share the rest evenly
     assert viewer._face_cap([10, 100, 100], 110) == 50 and viewer._face_cap([10, 100], 110) is None
 
 
 def test_a_panel_left_out_is_named_in_the_legend(tmp_path):
     """A uniform hierarchy segmented with combine="coarsest" holds attention on its last level only."""
-    result = _synthetic(n_levels=3, attention=[2], probabilities=False)
+    result = made_segmentation(n_levels=3, attention=[2], probabilities=False)
     assert len(viewer.panels(result, 2)) == 3 + 1  # the labels of each level, the last level's attention
     notes = _legend_notes(viewer.write_html(result, ["a", "b"], tmp_path / "view.html"))
     assert notes == ["No attention panel for levels 0, 1: the segmentation holds no attention there "
                      "(anseg.pipeline.fill_attention computes it).",
                      "No confidence panel: the segmentation holds no class probabilities."]
-    assert viewer.missing_panels(_synthetic()) == []
+    assert viewer.missing_panels(made_segmentation()) == []
 
 
 def test_a_vertex_no_face_uses_does_not_shrink_the_panels():
-    """The page scales each panel to its mesh's bounding box: a stray far vertex would make the shape a dot."""
-    result = _synthetic(stray=True)
+    """The page frames each panel on its mesh's points: a stray far vertex would make the shape a dot."""
+    result = made_segmentation(stray=True)
     shown, _ = viewer._for_display(viewer.panels(result, 2), viewer.DISPLAY_MAX_FACES)
     for _, _, mesh, rgb in shown:
         assert np.abs(mesh.vertices).max() < 1.01 and len(rgb) == mesh.n_faces
