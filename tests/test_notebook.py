@@ -98,9 +98,25 @@ def test_beside_a_table_a_notebook_says_which_machines_trained_its_runs(tmp_path
     assert nb.machines() == "No stored run is read here."
     cpu = {"environment": {"cuda": None, "cpus": 2}, "train_seconds": 60.0}
     nb.read = {"a": cpu, "b": cpu}
-    assert nb.machines() == "Trained on one kind of machine: CPU, 2 cores (2 runs)."
+    assert nb.machines().startswith("Trained on one kind of machine: CPU, 2 cores (2 runs). CPU models, from the run "
+                                    "records: CPU model not recorded (2). A record made before")
     nb.read["c"] = {"environment": {"cuda": "NVIDIA H100", "cpus": 16}, "train_seconds": 60.0}
     assert nb.machines().startswith("**These runs mix machines:** CPU, 2 cores (2 runs), NVIDIA H100 (1 run).")
+    assert "GPU: NVIDIA H100 (1)" in nb.machines()
+
+
+def test_the_record_names_each_runs_cpu_model_and_says_where_a_record_lacks_it(tmp_path):
+    from anseg.study.notebook import NOT_RECORDED, cpu_of
+
+    assert cpu_of({"environment": {"cuda": None, "machine": "x86_64", "processor": "x86_64"}}) == NOT_RECORDED
+    epyc = {"environment": {"cuda": None, "cpus": 2, "cpu_model": "AMD EPYC 9R14"}, "train_seconds": 1.0}
+    xeon = {"environment": {"cuda": None, "cpus": 2, "cpu_model": "Intel(R) Xeon(R) Processor"}, "train_seconds": 1.0}
+    nb = NotebookRun("table1_psb", smoke_parameters("table1_psb", tmp_path))
+    nb.read = {"a": epyc}
+    assert "AMD EPYC 9R14 (1)" in nb.machines() and "mix CPUs" not in nb.machines()
+    nb.read["b"] = xeon
+    assert "**These runs mix CPUs.**" in nb.machines()
+    assert nb._runs_read()["cpu_models"] == {"AMD EPYC 9R14": 1, "Intel(R) Xeon(R) Processor": 1}
 
 
 def test_a_figure_shows_the_median_mesh_and_of_an_even_count_the_lower_middle_one():

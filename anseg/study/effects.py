@@ -4,7 +4,9 @@ Units are (category, split) pairs, resampled in two stages (categories, then
 the splits inside each, since categories differ far more than splits), or
 test meshes, resampled in one. The interval above 0 reads ``reproduced``,
 below 0 ``not reproduced``, holding 0 or resting on one unit ``not
-distinguishable``; a claim of several parts needs every part. :data:`DRAWS`
+distinguishable``; a claim of several parts needs every part; a claim read two
+ways (:func:`across_readings`) stands where both readings agree and
+otherwise ``depends on the reading``. :data:`DRAWS`
 draws from a generator seeded with :data:`SEED`: a result gives the same
 interval every time.
 """
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 REPRODUCED, NOT_REPRODUCED, TIED, UNTESTED = "reproduced", "not reproduced", "not distinguishable", "cannot be tested here"
+DEPENDS = "depends on the reading"
 DRAWS, SEED = 10_000, 0
 
 
@@ -91,3 +94,9 @@ def combined(*effects: Effect) -> str:
     """A claim of several parts: reproduced when every part is, not reproduced when any part is, else not distinguishable."""
     verdicts = [e.verdict for e in effects]
     return NOT_REPRODUCED if NOT_REPRODUCED in verdicts else REPRODUCED if set(verdicts) == {REPRODUCED} else TIED
+
+
+def across_readings(*verdicts: str) -> str:
+    """One claim judged under several readings of the method, each by the rule: their verdict where they all agree,
+    else :data:`DEPENDS` (a verdict that holds under one reading alone is not the paper's claim reproduced or refuted)."""
+    return verdicts[0] if len(set(verdicts)) == 1 else DEPENDS

@@ -55,6 +55,19 @@ def median_mesh(per_mesh: list[dict]) -> dict:
     return ranked[(len(ranked) - 1) // 2]
 
 
+NOT_RECORDED = "CPU model not recorded"
+
+
+def cpu_of(result: dict) -> str:
+    """The CPU model that trained a stored result, from its record's ``cpu_model`` (else a ``processor`` that names
+    more than the architecture); "GPU: <name>" for a GPU run; :data:`NOT_RECORDED` where the record does not say."""
+    env = result.get("environment") or {}
+    if env.get("cuda"):
+        return f"GPU: {env['cuda']}"
+    model = env.get("cpu_model") or env.get("processor")
+    return model if model and model != env.get("machine") else NOT_RECORDED
+
+
 def table_row(run: PlannedRun, result: dict) -> dict:
     """One line of a notebook's runs table: the run's row, its accuracy in %, its training time, machine and key."""
     return {**run.row, **percent(result["accuracy"]), "train_seconds": round(result["train_seconds"], 1),
@@ -201,18 +214,45 @@ class NotebookRun:
         path.write_text(json.dumps(self.record, indent=1, default=str))
         print(f"{self.name}: {self.record['wall_seconds']:.0f} s wall time; record written to {path}")
         if runs_read["runs"]:
-            print(f"the {runs_read['runs']} runs it read: trained on {runs_read['machines']}, "
+            print(f"the {runs_read['runs']} runs it read: trained on {runs_read['machines']}, CPU models "
+                  f"{runs_read['cpu_models']}, "
                   f"code {runs_read['code_revisions']}, {runs_read['train_hours']:.2f} h of training in all")
         return path
 
     def machines(self) -> str:
-        """One sentence, for beside a table: the machines that trained the runs read so far, plainly when several."""
-        machines = self._runs_read()["machines"]
+        """For beside a table: the machines that trained the runs read so far, plainly when several, and their CPU
+        models as the run records give them (:func:`cpu_of`), plainly where a record does not (the table may then
+        mix CPUs without its records showing it)."""
+        read = self._runs_read()
+        machines, cpus = read["machines"], read["cpu_models"]
         listed = ", ".join(f"{machine} ({n} run{'s' if n > 1 else ''})" for machine, n in machines.items())
+        if not machines:
+            return "No stored run is read here."
         if len(machines) > 1:
-            return (f"**These runs mix machines:** {listed}. The same run can score differently on another device or "
+            text = (f"**These runs mix machines:** {listed}. The same run can score differently on another device or "
                     "with other library versions; each run's machine is in the runs table.")
-        return f"Trained on one kind of machine: {listed}." if machines else "No stored run is read here."
+        else:
+            text = f"Trained on one kind of machine: {listed}."
+        text += " CPU models, from the run records: " + ", ".join(f"{cpu} ({n})" for cpu, n in cpus.items()) + "."
+        known = [cpu for cpu in cpus if cpu != NOT_RECORDED and not cpu.startswith("GPU")]
+        if len(known) > 1:
+            text += " **These runs mix CPUs.**"
+        if NOT_RECORDED in cpus:
+            text += (" A record made before the CPU model was kept names only the architecture, so these runs may mix "
+                     "CPUs unseen: docs/reproducibility.md has the evidence of which runs an AMD EPYC and which an "
+                     "Intel Xeon trained.")
+        return text
+
+    def selection(self) -> str:
+        """For beside a PSB table that reads splits other than 0: " " and how many of their test meshes the
+        default's settings were chosen on (:mod:`anseg.study.selection`), split 0 named as the clean test; else ""."""
+        from anseg.study import selection
+
+        p = self.parameters
+        if p["dataset"] != "psb" or "splits" not in p:
+            return ""
+        note = selection.psb_note(p["categories"], p["splits"])
+        return f" **Selection:** {note}; split 0 alone is the clean test." if note else ""
 
     def summary(self) -> str:
         """The record in a few lines a reader takes in (Markdown): configuration, data, code, machine, versions."""
@@ -241,6 +281,7 @@ class NotebookRun:
             + ("" if r["environment"].get("code_clean") in (True, None) else " (with uncommitted changes)")
             for r in results)
         return {"runs": len(results), "machines": dict(Counter(trained_on(r) for r in results)),
+                "cpu_models": dict(Counter(cpu_of(r) for r in results)),
                 "code_revisions": dict(revisions),
                 "train_hours": round(sum(r.get("train_seconds", 0.0) for r in results) / 3600, 3)}
 
