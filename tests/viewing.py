@@ -80,10 +80,14 @@ class Browser:
                               f"--window-size={WINDOW[0]},{WINDOW[1]}", "about:blank"),
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         active = profile / "DevToolsActivePort"
-        port = wait(lambda: active.is_file() and active.read_text().split()[:1], 60, "Chromium's DevTools port")[0]
-        pages = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json"))
-        url = next(p for p in pages if p["type"] == "page")["webSocketDebuggerUrl"]
-        self.socket = websocket.create_connection(url, timeout=60, suppress_origin=True)
+        try:
+            port = wait(lambda: active.is_file() and active.read_text().split()[:1], 60, "Chromium's DevTools port")[0]
+            pages = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json"))
+            url = next(p for p in pages if p["type"] == "page")["webSocketDebuggerUrl"]
+            self.socket = websocket.create_connection(url, timeout=60, suppress_origin=True)
+        except BaseException:  # no browser left behind by a test that could not reach it
+            self.process.kill()
+            raise
         self.calls = 0
         # the page gets the whole window (a headless window keeps some of its height for a frame it does not draw)
         self.call("Emulation.setDeviceMetricsOverride", width=WINDOW[0], height=WINDOW[1], deviceScaleFactor=1, mobile=False)
