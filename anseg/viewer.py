@@ -63,7 +63,8 @@ def panels(result, n_classes: int) -> list[tuple[str, int, Mesh, np.ndarray]]:
 
     levels = result.levels
     colours = palette(n_classes)
-    out = [("labels", index, level.mesh, colours[levels.labels_on(index, result.labels, n_classes)])
+    # the levels may hold the input's faces in another order or without its stray pieces: Segmentation.on_levels
+    out = [("labels", index, level.mesh, colours[levels.labels_on(index, result.on_levels(result.labels), n_classes)])
            for index, level in enumerate(levels)]
     for index, level in enumerate(levels):
         if level.attention is not None:
@@ -73,7 +74,7 @@ def panels(result, n_classes: int) -> list[tuple[str, int, Mesh, np.ndarray]]:
             scaled = np.clip((log - low) / (high - low), 0, 1) if high - low > 1e-6 else np.full(len(log), 0.5)
             out.append(("attention", index, level.mesh, _rgb(matplotlib.colormaps["magma"](scaled))))
     if result.probabilities is not None:
-        confidence = result.probabilities.max(axis=1)
+        confidence = result.on_levels(result.probabilities).max(axis=1)
         out.append(("confidence", 0, levels[0].mesh, _rgb(matplotlib.colormaps["viridis"](confidence))))
     return out
 

@@ -351,3 +351,18 @@ def test_a_vertex_no_face_uses_does_not_shrink_the_panels():
     shown, _ = viewer._for_display(viewer.panels(result, 2), viewer.DISPLAY_MAX_FACES)
     for _, _, mesh, rgb in shown:
         assert np.abs(mesh.vertices).max() < 1.01 and len(rgb) == mesh.n_faces
+
+
+def test_panels_read_the_input_faces_where_the_levels_hold_them_in_another_order():
+    """A canonical segmentation's levels hold the faces in the canonical order, a stray piece's the shape's alone:
+    the panels colour each level face by the input face it is (Segmentation.level_faces), not by its position."""
+    from dataclasses import replace
+
+    made = made_segmentation(n_labels=3)
+    level_face_of_input = np.random.default_rng(1).permutation(len(made.labels))  # input face j is level face p[j]
+    shuffled = replace(made, labels=made.labels[level_face_of_input], probabilities=made.probabilities[level_face_of_input],
+                       level_faces=np.argsort(level_face_of_input))
+    panels = {(kind, index): rgb for kind, index, _, rgb in viewer.panels(shuffled, 3)}
+    assert np.array_equal(panels["labels", 0], palette(3)[made.labels])
+    unshuffled = {(kind, index): rgb for kind, index, _, rgb in viewer.panels(made, 3)}
+    assert np.array_equal(panels["confidence", 0], unshuffled["confidence", 0])
