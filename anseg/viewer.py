@@ -88,8 +88,15 @@ def missing_panels(result) -> list[str]:
     its coarsest level has it there alone. The viewer has no model to compute
     it with, so it says which levels lack it instead of leaving the button blank.
     """
+    from anseg.pipeline import NETWORK_FACES
+
     notes = []
-    bare = [str(index) for index, level in enumerate(result.levels) if level.attention is None]
+    first = result.levels[0]
+    unread = first.attention is None and first.layout is None and first.mesh.n_faces > NETWORK_FACES
+    if unread:  # segment's large-mesh path: no network reads the input level
+        notes.append(f"No attention panel for level 0: no network reads it (a mesh above {NETWORK_FACES} faces is "
+                     "segmented on its collapse, level 1, and the labels carried back).")
+    bare = [str(index) for index, level in enumerate(result.levels) if level.attention is None and not (index == 0 and unread)]
     if bare:
         notes.append(f"No attention panel for level{'s' if len(bare) > 1 else ''} {', '.join(bare)}: the segmentation "
                      "holds no attention there (anseg.pipeline.fill_attention computes it).")

@@ -343,6 +343,10 @@ def test_a_panel_left_out_is_named_in_the_legend(tmp_path):
                      "(anseg.pipeline.fill_attention computes it).",
                      "No confidence panel: the segmentation holds no class probabilities."]
     assert viewer.missing_panels(made_segmentation()) == []
+    # the input level of a mesh segmented through its collapse: no network read it, and fill_attention cannot help
+    large = made_segmentation(subdivisions=6, n_levels=2, attention=[1])
+    assert viewer.missing_panels(large) == ["No attention panel for level 0: no network reads it (a mesh above 60000 "
+                                            "faces is segmented on its collapse, level 1, and the labels carried back)."]
 
 
 def test_a_vertex_no_face_uses_does_not_shrink_the_panels():
