@@ -383,3 +383,26 @@ def test_the_readmes_rows_are_short_and_say_what_they_read(results):
     for claim in ("Downsampling order", "More cycles help"):  # the drift, between revisions and machines, in full
         if "revision_drift.csv" in evidence[claim]:
             assert "of the 7 moved from the accuracy stored" in evidence[claim]
+
+
+def test_selection_counts_the_test_meshes_the_settings_were_chosen_on():
+    from anseg.study import selection
+
+    assert selection.note([("Human", 0), ("Teddy", 0)]) == ""  # split 0 alone: the clean test
+    selected, tested = selection.overlap([("Human", 1), ("Human", 1)])  # a unit counted once
+    assert tested == 8 and 0 <= selected <= 8
+    assert selection.brief([("Human", 1)]) == f"selection {selection.percent(selected, tested)} ({selected} of 8)"
+
+
+def test_a_table_whose_readings_differ_in_cpu_says_so(tmp_path):
+    from anseg.study.headline import _cpus
+
+    (tmp_path / "runs").mkdir()
+    for key, model in (("a", "AMD EPYC 9R14"), ("b", "Intel(R) Xeon(R) Processor"), ("c", None)):
+        env = {"cuda": None, "machine": "x86_64", "processor": "x86_64", **({"cpu_model": model} if model else {})}
+        (tmp_path / "runs" / f"{key}.json").write_text(json.dumps({"environment": env}))
+    one = pd.DataFrame({"key": ["a"]})
+    assert _cpus([("default", one), ("`paper`", one)], tmp_path) == " Every run trained on AMD EPYC 9R14."
+    assert "**These runs mix CPUs:** default: AMD EPYC 9R14; `paper`: Intel(R) Xeon(R) Processor" in _cpus(
+        [("default", one), ("`paper`", pd.DataFrame({"key": ["b"]}))], tmp_path)
+    assert "The run records name no CPU model" in _cpus([("default", pd.DataFrame({"key": ["c"]}))], tmp_path)

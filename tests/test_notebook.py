@@ -106,7 +106,7 @@ def test_beside_a_table_a_notebook_says_which_machines_trained_its_runs(tmp_path
 
 
 def test_the_record_names_each_runs_cpu_model_and_says_where_a_record_lacks_it(tmp_path):
-    from anseg.study.notebook import NOT_RECORDED, cpu_of
+    from anseg.study.store import NOT_RECORDED, cpu_of
 
     assert cpu_of({"environment": {"cuda": None, "machine": "x86_64", "processor": "x86_64"}}) == NOT_RECORDED
     epyc = {"environment": {"cuda": None, "cpus": 2, "cpu_model": "AMD EPYC 9R14"}, "train_seconds": 1.0}

@@ -20,6 +20,28 @@ def _markdown_row(label, values) -> str:
     return f"| {label} | " + " | ".join("" if pd.isna(v) else f"{v:.2f}" for v in values) + " |"
 
 
+def _cpus(readings, results_dir: Path) -> str:
+    """" " and what the run records say of the CPUs that trained each reading's runs (a table whose readings differ
+    in CPU says so); where a record names none, what docs/reproducibility.md has as evidence instead."""
+    import json
+
+    from anseg.study.store import NOT_RECORDED, cpu_of
+
+    found = {}
+    for name, runs in readings:
+        paths = [results_dir / "runs" / f"{key}.json" for key in runs.get("key", [])]
+        found[name] = {cpu_of(json.loads(p.read_text())) for p in paths if p.is_file()}
+    if not any(found.values()):
+        return ""
+    if any(NOT_RECORDED in cpus for cpus in found.values()):
+        return (" The run records name no CPU model; docs/reproducibility.md has the evidence that the "
+                f"`{PLAIN_READING}` runs were trained on an Intel Xeon and the default's in part on an AMD EPYC, so "
+                "the two readings differ in CPU too.")
+    if len(set().union(*found.values())) > 1:
+        return " **These runs mix CPUs:** " + "; ".join(f"{n}: {', '.join(sorted(c))}" for n, c in found.items()) + "."
+    return f" Every run trained on {next(iter(set().union(*found.values())))}."
+
+
 def headline(results_dir: Path) -> str:
     """README's headline tables, built from the real run's result files (nothing typed by hand)."""
     import pandas as pd
@@ -52,11 +74,12 @@ def headline(results_dir: Path) -> str:
     ablation_splits = sorted(ablation_runs.split.unique())
     on = "split 0" if ablation_splits == [0] else f"the mean over {len(ablation_splits)} splits"
     selected = selection.psb_note(table4.index, ablation_splits)
+    readings = [("default", ablation_runs)] + ([(f"`{PLAIN_READING}`", literal)] if literal is not None else [])
     lines += ["", f"Table IV, downsampling ablation on PSB, {on} ([notebook](notebooks/executed/table4_ablation.ipynb)), "
               "ours (paper); \"none\" is the paper's row, a per-face classifier without attention or downsampling, "
               "and \"none, transformer\" our network on the input mesh alone (no paper number). Each category twice: "
               f"at our strongest (the default) and literally (`{PLAIN_READING}`, the paper's method as written)"
-              + (f"; {selected}" if selected else "") + ":", "",
+              + (f"; {selected}" if selected else "") + "." + _cpus(readings, results_dir), "",
               "| category | reading | " + " | ".join(rows) + " |", "|---|---|" + "---|" * len(rows)]
     literal_means = (None if literal is None else
                      literal.groupby(["category", "mode"]).unit_area.agg(["mean", "std"]).unstack())
@@ -70,7 +93,6 @@ def headline(results_dir: Path) -> str:
             lines.append(f"| {category} | `{PLAIN_READING}` | " + " | ".join(
                 "" if pd.isna(means.get(("mean", m))) else f"{means[('mean', m)]:.2f}"
                 + (f" ± {means[('std', m)]:.2f}" if pd.notna(means.get(("std", m))) else "") for m in rows) + " |")
-    readings = [("default", ablation_runs)] + ([(f"`{PLAIN_READING}`", literal)] if literal is not None else [])
     lines += ["", f"Paired, per split and category: nonuniform minus each other row, the mean over {len(ablation_splits)} "
               "split(s) and the categories with its 95 % bootstrap interval, read by the claims ledger's rule: "
               + "; ".join(f"{name}: " + "; ".join(f"{d} ({d.verdict})" for d in (

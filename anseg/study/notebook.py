@@ -32,7 +32,7 @@ from anseg.study.plan import (
     resolve_categories,
 )
 from anseg.study.runner import run_experiment
-from anseg.study.store import REPO, ResultStore, environment, trained_on
+from anseg.study.store import NOT_RECORDED, REPO, ResultStore, cpu_of, environment, trained_on
 
 SYNTHETIC_NOTICE = (
     "**Synthetic data: a check that this notebook runs, not a reproduction.** {smoke}"
@@ -53,19 +53,6 @@ def median_mesh(per_mesh: list[dict]) -> dict:
     """
     ranked = sorted(per_mesh, key=lambda entry: entry["accuracy"])
     return ranked[(len(ranked) - 1) // 2]
-
-
-NOT_RECORDED = "CPU model not recorded"
-
-
-def cpu_of(result: dict) -> str:
-    """The CPU model that trained a stored result, from its record's ``cpu_model`` (else a ``processor`` that names
-    more than the architecture); "GPU: <name>" for a GPU run; :data:`NOT_RECORDED` where the record does not say."""
-    env = result.get("environment") or {}
-    if env.get("cuda"):
-        return f"GPU: {env['cuda']}"
-    model = env.get("cpu_model") or env.get("processor")
-    return model if model and model != env.get("machine") else NOT_RECORDED
 
 
 def table_row(run: PlannedRun, result: dict) -> dict:

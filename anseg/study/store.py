@@ -162,6 +162,19 @@ def trained_on(result: dict) -> str:
     return env["cuda"] or f"{env.get('cpu_model', 'CPU')}, {env['cpus']} cores{pin}"
 
 
+NOT_RECORDED = "CPU model not recorded"
+
+
+def cpu_of(result: dict) -> str:
+    """The CPU model that trained a stored result, from its record's ``cpu_model`` (else a ``processor`` that names
+    more than the architecture); "GPU: <name>" for a GPU run; :data:`NOT_RECORDED` where the record does not say."""
+    env = result.get("environment") or {}
+    if env.get("cuda"):
+        return f"GPU: {env['cuda']}"
+    model = env.get("cpu_model") or env.get("processor")
+    return model if model and model != env.get("machine") else NOT_RECORDED
+
+
 class ResultStore:
     """Results (under ``results``, relative to the root) and models (under ``models``); every write is atomic."""
 
