@@ -127,7 +127,11 @@ def _parser() -> argparse.ArgumentParser:
     segment.add_argument("--html", type=Path, metavar="FILE",
                          help="also write a standalone HTML view (opens in any browser, no server): the labels, "
                               "every level with its attention, the confidence and a legend")
-    segment.add_argument("-q", "--quiet", action="store_true", help="no progress bar (shown on large meshes at a terminal)")
+    shown = segment.add_mutually_exclusive_group()
+    shown.add_argument("--progress", dest="progress", action="store_const", const=True, default=None,
+                       help="show the progress of a large mesh on stderr even where it is not a terminal "
+                            "(default: where it is one)")
+    shown.add_argument("-q", "--quiet", dest="progress", action="store_const", const=False, help="show no progress")
     segment.add_argument("--smooth-weight", type=_non_negative, default=None,
                          help="graph-cut weight (default: the model's; 0 turns smoothing off)")
     segment.add_argument("--repair", action="store_true",
@@ -266,7 +270,7 @@ def _segment(args) -> None:
         config = replace(config, smooth_weight=args.smooth_weight)
     results, per_file_face = [], []
     for input_mesh, file_face, mesh, face_map in shapes:  # each object on its own, in the file's order
-        result = segment(mesh, model, config, device=next(model.network.parameters()).device, progress=not args.quiet)
+        result = segment(mesh, model, config, device=next(model.network.parameters()).device, progress=args.progress)
         labels = result.labels
         if face_map is not None:  # back to the input faces, dropped ones included
             labels = labels_for_input_faces(result.labels, face_map, input_mesh)

@@ -504,19 +504,12 @@ def _smoothed(mesh: Mesh, probs: np.ndarray, config: SegmentConfig, levels: Hier
 
 def _segment_collapsed(mesh: Mesh, model: Segmenter, config: SegmentConfig, network_faces: int, device,
                        progress: bool | None, ensemble: tuple[Segmenter, ...]) -> Segmentation:
-    """:func:`segment` for a mesh above ``network_faces`` faces: on its uniform collapse to that many faces, the class
-    probabilities carried back to its faces and smoothed there (module docstring).
-
-    The collapse's target is a budget, so stopping a few faces above it
-    (no valid collapse left) changes nothing and is not warned of; a mesh
-    with few collapsible edges (most of its faces on boundaries) keeps more.
-    """
+    """:func:`segment` for a mesh above ``network_faces`` faces: on :func:`network_mesh`, the class probabilities
+    carried back to its faces and smoothed there (module docstring)."""
     mesh.validate()
     with progress_bar(total=3, desc=f"segment {mesh.n_faces} faces", unit="step", show=progress, leave=False) as bar:
         bar.set_postfix_str(f"collapse to {network_faces} faces")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", collapse.CollapseWarning)
-            coarse, record = collapse.downsample(mesh, None, ratio=network_faces / mesh.n_faces, mode="uniform")
+        coarse, record = network_mesh(mesh, network_faces)
         bar.update()
         bar.set_postfix_str("segment the collapse")
         inner = segment(coarse, model, replace(config, smooth_weight=0.0), None, device, progress, ensemble,
@@ -527,3 +520,15 @@ def _segment_collapsed(mesh: Mesh, model: Segmenter, config: SegmentConfig, netw
         result = _smoothed(mesh, collapse.upsample(record, inner.probabilities), config, levels)
         bar.update()
     return result
+
+
+def network_mesh(mesh: Mesh, faces: int) -> tuple[Mesh, collapse.CollapseRecord]:
+    """The uniform collapse of ``mesh`` to ``faces`` faces that a larger mesh is segmented on, and its record.
+
+    The target is a budget, so stopping a few faces above it (no valid
+    collapse left) changes nothing and is not warned of; a mesh with few
+    collapsible edges (most of its faces on boundaries) keeps more.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", collapse.CollapseWarning)
+        return collapse.downsample(mesh, None, ratio=faces / mesh.n_faces, mode="uniform")

@@ -5,7 +5,7 @@
                                  [--json FILE]
 
 Without ``--mesh`` it takes the PSB test mesh closest to ``--near`` faces (25K) from
-``$ANSEG_DATA`` (or a subdivided synthetic shape when no data is there);
+``$ANSEG_DATA`` (or a synthetic shape subdivided to about that size when no data is there);
 ``--subdivide 1`` splits every face in four first (a 25K mesh becomes 100K,
 twice gives 400K; ``--near 19000 --subdivide 2`` gives about 300K). Without
 ``--model`` (a file, or a shipped model's name as ``anseg models`` lists
@@ -49,7 +49,10 @@ from pathlib import Path
 import numpy as np
 
 
-def pick_mesh(path: str | None, subdivide: int, near: int = 25_000):
+def pick_mesh(path: str | None, subdivide: int, near: int = 25_000, psb_name: str | None = None):
+    """The mesh file at ``path``; else the PSB test mesh named ``psb_name`` (e.g. ``Teddy/162``) or the one of Teddy,
+    Human and Airplane closest to ``near`` faces; else, without data, a synthetic figure split in four as often as
+    brings it closest to ``near`` faces. Then split in four ``subdivide`` times. Returns the mesh and its name."""
     import igl
 
     from anseg import datasets, load_mesh
@@ -59,14 +62,16 @@ def pick_mesh(path: str | None, subdivide: int, near: int = 25_000):
         mesh, name = load_mesh(path), path
     else:
         try:
-            items = [m for c in ("Teddy", "Human", "Airplane")
-                     for m in datasets.load("psb", category=c, split="test", progress=False)]
-            item = min(items, key=lambda m: abs(m.mesh.n_faces - near))
+            categories = [psb_name.split("/")[0]] if psb_name else ["Teddy", "Human", "Airplane"]
+            items = [m for c in categories for m in datasets.load("psb", category=c, split="test", progress=False)]
+            item = (next(m for m in items if m.name == psb_name) if psb_name
+                    else min(items, key=lambda m: abs(m.mesh.n_faces - near)))
             mesh, name = item.mesh, f"PSB {item.name}"
         except datasets.DatasetError:
             item = datasets.load("synthetic", category="figure", split="test", progress=False)[0]
-            v, f = igl.upsample(item.mesh.vertices, item.mesh.faces, 3)
-            mesh, name = Mesh(v, f), f"synthetic {item.name} subdivided"
+            times = max(0, round(np.log(near / item.mesh.n_faces) / np.log(4)))
+            v, f = igl.upsample(item.mesh.vertices, item.mesh.faces, times)
+            mesh, name = Mesh(v, f), f"synthetic {item.name} subdivided x{times}"
     if subdivide:
         v, f = igl.upsample(mesh.vertices, mesh.faces, subdivide)
         mesh, name = Mesh(v, f), f"{name} subdivided x{subdivide}"

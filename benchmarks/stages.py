@@ -68,18 +68,29 @@ def import_from(code: str | None) -> None:
 
 
 @contextmanager
-def stage_timers(totals: dict, wrapped: dict):
-    """While active, every call of ``wrapped[stage] = (owner, attribute)`` adds its seconds to ``totals[stage]``."""
+def stage_timers(totals: dict, wrapped: dict, outermost: bool = False):
+    """While active, every call of ``wrapped[stage] = (owner, attribute)`` adds its seconds to ``totals[stage]``.
+
+    ``outermost``: a call made while another wrapped call runs is counted in
+    that one's stage only, so that the stages add up to no more than the time
+    they took (the coarse levels' features, which call the feature code, are
+    then theirs, not the features').
+    """
     originals = []
+    running = []
     for stage, (owner, name) in wrapped.items():
         original = getattr(owner, name)
         originals.append((owner, name, original))
 
         def timed(*args, _original=original, _stage=stage, **kwargs):
+            if outermost and running:
+                return _original(*args, **kwargs)
             start = time.perf_counter()
+            running.append(_stage)
             try:
                 return _original(*args, **kwargs)
             finally:
+                running.pop()
                 totals[_stage] += time.perf_counter() - start
 
         setattr(owner, name, timed)
