@@ -528,7 +528,7 @@ def _best_setting(results: Path) -> Verdict:
                        _mixed(grid, "point", results))
 
     return _two_readings(results, "fig11_cycles_ratio.csv", "fig11_cycles_ratio", read,
-                         "the rival is picked on these runs (winner's curse: a loss is overstated)")
+                         "rival picked on these runs (winner's curse)")
 
 
 def feature_effects(runs) -> tuple[Effect, Effect]:
