@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from anseg.study import ledger, reference
+from anseg.study import figure_effects, ledger, reference
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 UNTESTABLE = {"COSEG accuracy", "Better than MeshCNN and Guo et al.", "Cost"}
@@ -277,23 +277,23 @@ def test_the_committed_verdicts_are_their_effects_intervals(results):
         return pd.read_csv(path) if path.is_file() else None
 
     runs = judged("table4_ablation_runs.csv")
-    order = None if runs is None else [ledger.paired_over_splits(runs, "nonuniform", "uniform"),
-                                       ledger.paired_over_splits(runs, "uniform", "none")]
+    order = None if runs is None else [figure_effects.paired_over_splits(runs, "nonuniform", "uniform"),
+                                       figure_effects.paired_over_splits(runs, "uniform", "none")]
     ours = pd.read_csv(results / "table4_ablation_runs.csv")
-    strongest = ledger.combined(ledger.paired_over_splits(ours, "nonuniform", "uniform"),
-                                ledger.paired_over_splits(ours, "uniform", "none"))
+    strongest = ledger.combined(figure_effects.paired_over_splits(ours, "nonuniform", "uniform"),
+                                figure_effects.paired_over_splits(ours, "uniform", "none"))
     assert table["Downsampling order"] == (ledger.UNTESTED if order is None else
                                            ledger.across_readings(ledger.combined(*order), strongest))
     meshes = pd.read_csv(results / "fig4_test_meshes.csv")
-    (attention, labels), (attention_ours, labels_ours) = ledger.fig4_effects(meshes, "paper"), ledger.fig4_effects(meshes,
-                                                                                                                   "ours")
+    attention, labels = figure_effects.fig4_effects(meshes, "paper")
+    attention_ours, labels_ours = figure_effects.fig4_effects(meshes, "ours")
     assert (table["Attention at junctions"], table["Labels survive"]) == (
         ledger.across_readings(attention.verdict, attention_ours.verdict), ledger.across_readings(labels.verdict,
                                                                                                   labels_ours.verdict))
     runs = judged("fig12_features.csv")
-    features = ledger.combined(*ledger.feature_effects(pd.read_csv(results / "fig12_features.csv")))
+    features = ledger.combined(*figure_effects.feature_effects(pd.read_csv(results / "fig12_features.csv")))
     assert table["All four feature groups"] == (ledger.UNTESTED if runs is None else ledger.across_readings(
-        ledger.combined(*ledger.feature_effects(runs)), features))
+        ledger.combined(*figure_effects.feature_effects(runs)), features))
     psb = pd.read_csv(results / "table1_psb_runs.csv")
     gap = psb.unit_area - psb.category.map(reference.TABLE_I["methods"]["Ours (paper)"])
     units = pd.MultiIndex.from_frame(psb[["category", "split"]])
@@ -345,7 +345,7 @@ def test_a_paired_difference_cancels_each_units_difficulty():
     runs = pd.DataFrame([{"category": c, "split": s, "mode": mode, "unit_area": 80.0 + 5 * s + 7 * (c == "b")
                           + (d if mode == "nonuniform" else 0.0)}
                          for (c, s), d in per_unit.items() for mode in ("nonuniform", "uniform")])
-    paired = ledger.paired_over_splits(runs, "nonuniform", "uniform")
+    paired = figure_effects.paired_over_splits(runs, "nonuniform", "uniform")
     assert paired.values.to_dict() == pytest.approx(per_unit)
     assert paired.verdict == ledger.REPRODUCED and str(paired).startswith("nonuniform − uniform +2.00 [")
 
@@ -353,7 +353,7 @@ def test_a_paired_difference_cancels_each_units_difficulty():
 def test_fig11_readings_and_the_ledger_read_the_same_per_split_effects(tmp_path):
     folder = write_evidence(tmp_path, "N = 4, ratio 0.5", -3.0, 1.0)
     runs = pd.read_csv(folder / "fig11_cycles_ratio.csv")
-    readings = ledger.fig11_readings(runs)
+    readings = figure_effects.fig11_readings(runs)
     assert [r.category for r in readings] == list(CATEGORIES)
     for reading in readings:
         assert reading.rival == (0.3, 2) and reading.choice.verdict == ledger.NOT_REPRODUCED

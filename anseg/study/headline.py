@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from anseg.study import ledger, selection
+from anseg.study import figure_effects, ledger, selection
 from anseg.study.plan import PLAIN_READING, TABLE_IV_ROWS, papers_method_file
 
 HEADLINE_START = "<!-- headline: written by `python -m anseg.study.reproduce --data real` from results/*.csv; do not edit -->"
@@ -96,7 +96,7 @@ def headline(results_dir: Path) -> str:
     lines += ["", f"Paired, per split and category: nonuniform minus each other row, the mean over {len(ablation_splits)} "
               "split(s) and the categories with its 95 % bootstrap interval, read by the claims ledger's rule: "
               + "; ".join(f"{name}: " + "; ".join(f"{d} ({d.verdict})" for d in (
-                  ledger.paired_over_splits(runs, "nonuniform", m) for m in rows[1:] if m in set(runs["mode"])))
+                  figure_effects.paired_over_splits(runs, "nonuniform", m) for m in rows[1:] if m in set(runs["mode"])))
                   for name, runs in readings) + "."]
     coseg = results_dir / "table2_coseg.csv"
     if coseg.is_file():

@@ -62,6 +62,7 @@ from anseg.study.effects import (
     combined,
     effect,
 )
+from anseg.study.figure_effects import by_unit, feature_effects, fig4_effects, fig11_units, paired_over_splits, pooled
 from anseg.study.plan import PLAIN_READING, papers_method_file
 
 RULE = (f"One rule decides every row: the claim becomes a paired effect in its favour (positive = what the paper says), "
@@ -139,15 +140,8 @@ def _mixed(runs, arm: str, results: Path) -> str:
     return "mixed code revisions" if revisions.mix(runs, arm, results) else ""
 
 
-def _by_unit(runs, *columns: str):
-    """The run table indexed by (category, split), columns pivoted where given (the unit of every split claim)."""
-    if columns:
-        return runs.pivot_table(index=["category", "split"], columns=list(columns), values="unit_area")
-    return runs.set_index(["category", "split"]).unit_area
-
-
 def _psb_runs(results: Path):
-    return _by_unit(_csv(results, "table1_psb_runs.csv"))
+    return by_unit(_csv(results, "table1_psb_runs.csv"))
 
 
 def _psb_accuracy(results: Path) -> Verdict:
@@ -250,13 +244,6 @@ def _human(results: Path) -> Verdict:
                          "paper's split, on MeshCNN's simplified meshes (the paper does not say it used them)")
 
 
-def paired_over_splits(runs, better: str, worse: str) -> Effect:
-    """Table IV's row ``better`` minus ``worse`` per (category, split), from its runs
-    (``table4_ablation_runs.csv``: category, split, mode, unit_area), with the ledger's interval."""
-    accuracy = _by_unit(runs, "mode")
-    return effect(accuracy[better] - accuracy[worse], f"{better} − {worse}")
-
-
 def _readings(results: Path, own: str) -> tuple[str, str]:
     """The two readings' names for a row: literal (``paper``) and strongest (``own``, the notebook's), each with its
     PSB split-0 accuracy from Table I, the strongest with the paper's beside it (where Table I has them)."""
@@ -355,34 +342,6 @@ def _ablation_order(results: Path) -> Verdict:
     return verdict
 
 
-def fig4_summary(meshes):
-    """From Fig. 4's per-mesh table (``fig4_test_meshes.csv``): the means its tables show.
-
-    The attention's mean AUC for near-boundary faces over the test meshes,
-    by model and level of the nonuniform hierarchies (a Series), and the
-    mean share of the area whose true label survives the trip to the
-    coarsest level and back, by model and downsampling (a DataFrame).
-    """
-    auc = meshes[meshes.downsampling == "nonuniform"].groupby(["model", "level"])["attention AUC, near vs elsewhere"].mean()
-    coarsest = meshes[meshes.level == meshes.level.max()]
-    return auc, coarsest.groupby(["model", "downsampling"])["labels kept (%)"].mean().unstack()
-
-
-def fig4_effects(meshes, model: str) -> tuple[Effect, Effect]:
-    """The two claims Fig. 4 reads, per test mesh, for one model (the rule of the ledger).
-
-    Attention: the AUC of near-boundary faces minus 0.5 (chance), averaged
-    over the coarse levels (1 and up) of the model's nonuniform hierarchy.
-    Labels: the share of the area whose true label survives the coarsest
-    level and back, nonuniform minus uniform.
-    """
-    own = meshes[meshes.model == model]
-    nonuniform = own[(own.downsampling == "nonuniform") & (own.level > 0)]  # level 0 is the input mesh
-    auc = nonuniform.groupby("mesh")["attention AUC, near vs elsewhere"].mean() - 0.5
-    coarsest = own[own.level == own.level.max()].pivot_table(index="mesh", columns="downsampling", values="labels kept (%)")
-    return (effect(auc, "AUC − 0.5"), effect(coarsest["nonuniform"] - coarsest["uniform"], "nonuniform − uniform"))
-
-
 def _fig4_test_meshes(results: Path):
     meshes = _csv(results, "fig4_test_meshes.csv")
     if PLAIN_READING not in set(meshes.model):
@@ -421,76 +380,6 @@ def _labels_survive(results: Path) -> Verdict:
                           "the paper gives no number")
 
 
-@dataclass(frozen=True)
-class CyclesReading:
-    """Fig. 11 read for one category, each effect over its splits with the ledger's rule.
-
-    ``rise``: accuracy at the paper's N minus at N = 1, the mean over the
-    shares removed; ``choice``: the paper's point (N = 4, removing 0.5) minus
-    the best other point of the grid (``rival``, picked by its mean over the
-    same splits, which favours it), None where the grid lacks the choice.
-    """
-
-    category: str
-    means: dict  # (removed, cycles) -> mean accuracy over the splits
-    rise: Effect | None
-    choice: Effect | None
-    rival: tuple[float, int] | None
-
-    def __str__(self) -> str:
-        best = max(self.means, key=self.means.get)
-        text = (f"**{self.category}**: best point N = {best[1]}, removing {best[0]:g} ({self.means[best]:.2f} %); "
-                "more cycles (the mean over the shares removed): ")
-        text += "N = 1 or the paper's N not run" if self.rise is None else f"{self.rise} ({self.rise.verdict})"
-        if self.choice is None:
-            return text + "; the paper's choice not run"
-        return text + f"; against the best other point: {self.choice} ({self.choice.verdict})"
-
-
-def _fig11_units(runs) -> dict:
-    """Per category: (accuracy by (removed, cycles) × split, rise per split, choice per split or None, rival)."""
-    choice = reference.FIG11_CHOICE
-    key, first = (choice["removed"], choice["cycles"]), 1
-    units = {}
-    for category, table in runs.groupby("category"):
-        accuracy = table.pivot_table(index=["removed", "cycles"], columns="split", values="unit_area")
-        shares = [r for r in accuracy.index.unique("removed") if {(r, first), (r, choice["cycles"])} <= set(accuracy.index)]
-        rise = None
-        if shares:
-            rise = sum(accuracy.loc[(r, choice["cycles"])] - accuracy.loc[(r, first)] for r in shares) / len(shares)
-        gap, rival = None, None
-        if key in accuracy.index and len(accuracy) > 1:
-            rival = accuracy.drop(key).mean(axis=1).idxmax()
-            gap = accuracy.loc[key] - accuracy.loc[rival]
-        units[category] = (accuracy, rise, gap, rival)
-    return units
-
-
-def fig11_readings(runs) -> list[CyclesReading]:
-    """Fig. 11's runs (``fig11_cycles_ratio.csv``: category, split, removed, cycles, unit_area) read per category.
-
-    The Fig. 11 notebook writes its sentences from these; the ledger pools
-    the same per-split effects over the categories (:func:`_fig11`), so the
-    figure and the ledger read the grid the same way.
-    """
-    choice = reference.FIG11_CHOICE
-    return [CyclesReading(category, accuracy.mean(axis=1).to_dict(),
-                          None if rise is None else effect(rise, f"N = {choice['cycles']} − N = 1"),
-                          None if gap is None else effect(gap, f"the paper's choice − N = {rival[1]}, removing {rival[0]:g}"),
-                          rival)
-            for category, (accuracy, rise, gap, rival) in _fig11_units(runs).items()]
-
-
-def _pooled(per_category: dict, name: str) -> Effect:
-    """Per-split effects of several categories as one effect over (category, split)."""
-    import pandas as pd
-
-    present = {c: s for c, s in per_category.items() if s is not None}
-    if not present:
-        raise MissingResult(f"no category holds {name}")
-    return effect(pd.concat(present, names=["category", "split"]), name)
-
-
 def _cycles(results: Path) -> Verdict:
     """Accuracy at the paper's N = 4 minus at N = 1, per (category, split), the mean over the shares removed.
 
@@ -499,8 +388,8 @@ def _cycles(results: Path) -> Verdict:
     that no peak is picked on the numbers it is scored on.
     """
     def read(runs) -> Reading:
-        units = _fig11_units(runs)
-        rise = _pooled({c: u[1] for c, u in units.items()}, f"N = {reference.FIG11_CHOICE['cycles']} − N = 1")
+        units = fig11_units(runs)
+        rise = pooled({c: u[1] for c, u in units.items()}, f"N = {reference.FIG11_CHOICE['cycles']} − N = 1")
         shares = "; ".join(f"{c} {', '.join(f'{r:g}' for r in u[0].index.unique('removed'))}" for c, u in units.items())
         arms = runs.astype({"cycles": str})
         return Reading((rise,), f"{rise} (shares removed: {shares}){_revisions(arms, 'cycles', results)}",
@@ -519,8 +408,8 @@ def _best_setting(results: Path) -> Verdict:
     tie or better is read against that bias; the row says so.
     """
     def read(runs) -> Reading:
-        units = _fig11_units(runs)
-        gap = _pooled({c: u[2] for c, u in units.items()}, "the paper's point − the best other")
+        units = fig11_units(runs)
+        gap = pooled({c: u[2] for c, u in units.items()}, "the paper's point − the best other")
         rivals = "; ".join(f"{c} N = {u[3][1]}, removing {u[3][0]:g} (of {len(u[0])} points)" if u[3] is not None
                            else f"{c}: the paper's choice not run" for c, u in units.items())
         grid = runs.assign(point=runs.removed.astype(str) + "/" + runs.cycles.astype(str))
@@ -529,23 +418,6 @@ def _best_setting(results: Path) -> Verdict:
 
     return _two_readings(results, "fig11_cycles_ratio.csv", "fig11_cycles_ratio", read,
                          "rival picked on these runs (winner's curse)")
-
-
-def feature_effects(runs) -> tuple[Effect, Effect]:
-    """Fig. 12's two claims per (category, split), from ``fig12_features.csv`` (category, split, features, unit_area).
-
-    The full set (edge + GC + SDF + AGD) minus the best other of the paper's
-    sets (picked per category by its mean over the splits, which favours it),
-    and minus the set without AGD.
-    """
-    from anseg.features import ABLATION_SETS
-
-    *others, full = list(ABLATION_SETS)
-    accuracy = _by_unit(runs, "features")
-    rival = accuracy[others].groupby(level="category").mean().idxmax(axis=1)
-    best_other = accuracy[others].apply(lambda row: row[rival[row.name[0]]], axis=1)
-    return (effect(accuracy[full] - best_other, f"{full} − the best other set"),
-            effect(accuracy[full] - accuracy[others[-1]], f"{full} − {others[-1]}"))
 
 
 def _features(results: Path) -> Verdict:
