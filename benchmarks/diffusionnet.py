@@ -12,11 +12,10 @@ rotations, 128 eigenpairs, 4 blocks of width 128 with dropout, outputs
 averaged to the faces, Adam at lr 1e-3 halved every 50 epochs, 200 epochs,
 one mesh per step, the last model scored.
 
-The "DiffusionNet (hks), unbacked" reference values in ``anseg/study/reference.py``
-(``MEASURED_ON_OUR_DATA``) were measured this way, one run per category on an
-H100; they are printed beside each result. One run each: a rerun with
-another seed or device is not expected to match them to the last digit. On a
-CPU the 16 categories take many hours (20 meshes per category, 200 epochs).
+One run each, one seed: a rerun with another seed or device is not expected
+to match to the last digit. On one CPU thread a PSB category takes 20 to 90
+minutes (20 meshes, 200 epochs); the human set's 381 training meshes are a
+GPU's work.
 
 Usage::
 
@@ -26,9 +25,11 @@ Usage::
         [--dataset psb|human_seg] [--category Hand Teddy] [--split 0] [--epochs 200] [--input hks|xyz] \\
         [--device auto] [--seed 0] [--op-cache DIR] [--json FILE]
 
-Nothing is written into results/; ``--json FILE`` keeps the printed figures with
-the machine, versions and the clone's commit. The rerun of Hand made on this
-project's 2-core CPU is kept in ``results/peers/``.
+``--json FILE`` keeps the figures with the settings, the machine's record
+(CPU model, kernels, releases, revision) and the clone's commit. The tables
+show a peer's number only where such a file is stored under
+``results/peers/`` (``anseg.study.peers`` reads every file there); name it
+``diffusionnet_<input>_<category or human_seg>_split<split>_<device>.json``.
 """
 
 from __future__ import annotations
@@ -46,7 +47,6 @@ import numpy as np
 
 from anseg import datasets
 from anseg.metrics import pooled_accuracy
-from anseg.study.reference import measured_on_our_data
 
 # The authors' settings for segmentation (human_segmentation_original.py).
 K_EIG = 128
@@ -133,9 +133,8 @@ def run_category(dn, category: str | None, args, device) -> dict:
     with torch.no_grad():
         predicted = [mesh.forward(dn, model).argmax(dim=1).cpu().numpy() for mesh in test]
     scores = pooled_accuracy(predicted, [item.labels for item in test_items], [item.mesh.face_areas for item in test_items])
-    reference = measured_on_our_data(category or args.dataset).get(f"DiffusionNet ({args.input}), unbacked")
     return {"category": category or args.dataset, **{key: 100 * value for key, value in scores.items()},
-            "reference": reference, "train_s": train_s, "operator_s": operator_s}
+            "train_s": train_s, "operator_s": operator_s}
 
 
 def main(argv=None) -> None:
@@ -172,22 +171,18 @@ def main(argv=None) -> None:
         except datasets.DatasetError as error:
             sys.exit(f"error: {error}")
         rows.append(row)
-        reference = "" if row["reference"] is None else f"  reference {row['reference']:6.2f}"
         print(f"{row['category']:10s} unit area {row['unit_area']:6.2f}  raw area {row['raw_area']:6.2f}  "
-              f"faces {row['faces']:6.2f}{reference}  train {row['train_s']:7.1f} s  (operators {row['operator_s']:.1f} s)",
+              f"faces {row['faces']:6.2f}  train {row['train_s']:7.1f} s  (operators {row['operator_s']:.1f} s)",
               flush=True)
 
     mean = float(np.mean([row["unit_area"] for row in rows]))
-    references = [row["reference"] for row in rows]
-    # the reference mean is over the same categories, so it is comparable however many ran
-    reference_mean = None if None in references else float(np.mean(references))
-    print(f"{'mean':10s} unit area {mean:6.2f}" + ("" if reference_mean is None else f"  reference {reference_mean:6.2f}"))
+    print(f"{'mean':10s} unit area {mean:6.2f}")
     if args.json:
         from anseg.study.store import code_revision, environment
 
         authors = code_revision(args.diffusion_net)["code_revision"]  # the clone's commit: which DiffusionNet ran
         args.json.write_text(json.dumps({"settings": vars(args), "categories": rows, "mean": mean,
-                                         "reference_mean": reference_mean, "diffusion_net_revision": authors,
+                                         "diffusion_net_revision": authors,
                                          "environment": environment()}, indent=1, default=str))
 
 

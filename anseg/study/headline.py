@@ -57,7 +57,10 @@ def headline(results_dir: Path) -> str:
     selected = selection.psb_note(table1.index.drop("mean"), range(n_splits)) if more else ""
     lines = [f"PSB, Table I ([notebook](notebooks/executed/table1_psb.ipynb)): Eq. 5 with unit area, "
              f"{first}, graph cut on: the clean figure, tested on meshes no setting was chosen on; beside ours the "
-             "paper's column and the reference points this project measured on exactly our data (split 0)."
+             "paper's column and the peers this project reran on exactly our data (split 0, one seed; "
+             + (", ".join(f"{c.removesuffix(', our data, split 0')} on {table1[c].drop('mean').notna().sum()} of "
+                          f"{len(table1) - 1} categories" for c in peers) or "none yet")
+             + ", the others not run here, `results/peers/`)."
              + (f" Then our mean over {n_splits} splits and its standard deviation (in the mean row: the spread of "
                 f"the 16-category mean from split to split); of those splits, {selected}." if more else ""),
              "", "| category | ours | paper | ours − paper | " + " | ".join(c.removesuffix(", our data, split 0") for c in peers)

@@ -12,9 +12,8 @@ say so next to it:
 * peers on the SAME simplified data we have (MeshCNN's COSEG large sets and
   human_seg, :data:`SAME_DATA`): some count labelled faces, some labelled
   edges (MeshCNN's own metric), as marked per entry;
-* reference points measured on this project's exact data, split and metric
-  (:data:`MEASURED_ON_OUR_DATA`, run by this project), each marked
-  "unbacked" where the run's outputs were not kept.
+* peers rerun by this project on its exact data, split and metric are not
+  constants: :mod:`anseg.study.peers` reads them from their stored outputs.
 
 A number that could not be checked against its source was left out
 (:data:`LEFT_OUT` says which and why).
@@ -154,33 +153,11 @@ LEFT_OUT = {
                                                   "whether edges or faces were counted, nor on which version of the data",
     "SubdivNet": "reports on remeshed versions of COSEG and the human set, scored on the original meshes: not our data",
     "DiffusionNet (published)": "its human segmentation experiment uses the original Maron et al. meshes, not the simplified set",
-}
-
-_OUR_RUNS = ("run by an earlier session of this project on exactly its data, split 0 and metric (Eq. 5, unit area), one "
-             "run each on an H100: DiffusionNet (Sharp et al. 2022) from its public repository with its own settings "
-             "(benchmarks/diffusionnet.py). Unbacked: those runs' outputs were not kept. The one rerun kept, Hand on this "
-             "project's 2-core CPU with the same script, is results/peers/diffusionnet_hks_Hand_split0_cpu.json; it "
-             "scored lower than the value here (one seed, another device)")
-
-# Reference points measured on this project's exact data, split 0 and metric (unit-area Eq. 5).
-MEASURED_ON_OUR_DATA = {
-    "DiffusionNet (hks), unbacked": {
-        "source": _OUR_RUNS,
-        "values": {"psb_mean": 91.6, "human_seg": 91.7,
-                   "Airplane": 81.68, "Ant": 98.36, "Armadillo": 92.43, "Bird": 89.99, "Chair": 88.10, "Cup": 99.85,
-                   "Fish": 91.88, "FourLeg": 81.28, "Glasses": 96.86, "Hand": 92.50, "Human": 86.84, "Octopus": 98.29,
-                   "Plier": 95.25, "Table": 99.21, "Teddy": 97.89, "Vase": 75.25},
-    },
-    "DiffusionNet (xyz), unbacked": {"source": _OUR_RUNS, "values": {"human_seg": 92.0}},
+    "DiffusionNet on an H100, by an earlier session": "16 PSB categories and the human set run on our data, whose "
+                                                      "outputs were not kept; rerun here instead (anseg.study.peers)",
 }
 
 
 def same_data(dataset: str) -> list[dict]:
     """The :data:`SAME_DATA` entries for one of our data sets (e.g. ``"human_seg"``); empty when none report on it."""
     return [entry for entry in SAME_DATA if entry["dataset"] == dataset]
-
-
-def measured_on_our_data(key: str) -> dict[str, float]:
-    """Each :data:`MEASURED_ON_OUR_DATA` method's value for ``key``
-    (a PSB category, ``"psb_mean"`` or ``"human_seg"``), where measured."""
-    return {name: ref["values"][key] for name, ref in MEASURED_ON_OUR_DATA.items() if key in ref["values"]}
