@@ -23,7 +23,7 @@ worktree), size by size, with the ratio of its time over ours.
 from __future__ import annotations
 
 # first: importing stages pins the float kernels (anseg/kernels.py) before NumPy and torch load
-from stages import import_from, reference_checkout, stage_timers
+from stages import import_from, parse_or_measure, reference_checkout, stage_timers
 
 # isort: split
 import argparse
@@ -111,12 +111,8 @@ def main(argv=None) -> None:
     parser.add_argument("--model", default="psb/Teddy", help="model file or shipped model (default: psb/Teddy)")
     parser.add_argument("--repeat", type=int, default=1, help="runs per size, the fastest kept (default: 1)")
     parser.add_argument("--reference", help="git revision whose code segments the same files beside ours")
-    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
-    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--code", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
-    if args.child:
-        measure(args)
+    args = parse_or_measure(parser, argv, measure)
+    if args is None:  # a child: it measured
         return
     from segment import pick_mesh
 

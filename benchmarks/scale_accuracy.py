@@ -24,7 +24,6 @@ import anseg  # noqa: F401  first: importing anseg pins the float kernels before
 
 # isort: split
 import argparse
-import csv
 import math
 import os
 import tempfile
@@ -112,10 +111,9 @@ def main(argv=None) -> None:
     print("\nseconds per mesh (median): " + ", ".join(f"{arm} {np.median([r[f'{arm} seconds'] for r in rows]):.1f}"
                                                    for arm in arms))
     if args.csv:
-        with open(args.csv, "w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        import pandas as pd
+
+        pd.DataFrame(rows).to_csv(args.csv, index=False)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ the run the claims ledger quotes for the paper's cost claim).
 from __future__ import annotations
 
 # first: importing stages pins the float kernels (anseg/kernels.py) before NumPy and torch load
-from stages import import_from, kernels_of_children, print_stages, reference_checkout, stage_timers
+from stages import import_from, kernels_of_children, parse_or_measure, print_stages, reference_checkout, stage_timers
 
 # isort: split
 import argparse
@@ -175,12 +175,8 @@ def main(argv=None) -> None:
     parser.add_argument("--reference-set", help="the reference run's overrides instead of --set (\"\": the defaults)")
     parser.add_argument("--reference-kernels", choices=["native"],
                         help="the reference runs each library's own kernels (ANSEG_KERNELS=native): the pin's cost")
-    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
-    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--code", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
-    if args.child:
-        measure(args)
+    args = parse_or_measure(parser, argv, measure)
+    if args is None:  # a child: it measured
         return
     own = [f"--subdivide={args.subdivide}", f"--near={args.near}", f"--repeat={args.repeat}", f"--threads={args.threads}",
            f"--config={args.config}",

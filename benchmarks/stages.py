@@ -1,5 +1,6 @@
 """What the benchmarks share: the kernel pin before NumPy loads, stage timers that wrap the package functions, a
-reference revision's checkout, and this core's arithmetic peak.
+reference revision's checkout, the options of a benchmark that measures in child processes, and this core's
+arithmetic peak.
 
 Imported first by the benchmarks that can run another revision's code: it
 sets the pinned kernels' variables (``anseg/kernels.py``, read as a file so
@@ -9,6 +10,7 @@ first), so this process's NumPy and every child process run them.
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import math
 import subprocess
@@ -99,6 +101,20 @@ def stage_timers(totals: dict, wrapped: dict, outermost: bool = False):
     finally:
         for owner, name, original in originals:
             setattr(owner, name, original)
+
+
+def parse_or_measure(parser: argparse.ArgumentParser, argv, measure) -> argparse.Namespace | None:
+    """Adds ``--json`` and the hidden options a child process is started with (``--child``, ``--code``: the
+    reference checkout whose code it imports), then parses ``argv``: in a child, runs ``measure(args)`` and
+    returns None; in the parent, returns the options."""
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
+    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--code", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        measure(args)
+        return None
+    return args
 
 
 def print_stages(totals: dict, reference: dict | None = None, name: str = "reference") -> None:
