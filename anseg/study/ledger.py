@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anseg.study import reference, revisions, selection
+from anseg.study import figure_effects, reference, revisions, selection
 from anseg.study.effects import (
     DEPENDS,
     DRAWS,
@@ -62,7 +62,6 @@ from anseg.study.effects import (
     combined,
     effect,
 )
-from anseg.study.figure_effects import by_unit, feature_effects, fig4_effects, fig11_units, paired_over_splits, pooled
 from anseg.study.plan import PLAIN_READING, papers_method_file
 
 RULE = (f"One rule decides every row: the claim becomes a paired effect in its favour (positive = what the paper says), "
@@ -141,7 +140,7 @@ def _mixed(runs, arm: str, results: Path) -> str:
 
 
 def _psb_runs(results: Path):
-    return by_unit(_csv(results, "table1_psb_runs.csv"))
+    return figure_effects.by_unit(_csv(results, "table1_psb_runs.csv"))
 
 
 def _psb_accuracy(results: Path) -> Verdict:
@@ -326,7 +325,7 @@ def _ablation_order(results: Path) -> Verdict:
     pairs = (("nonuniform", "uniform"), ("uniform", "none"))
 
     def read(runs) -> Reading:
-        parts = tuple(paired_over_splits(runs, better, worse) for better, worse in pairs)
+        parts = tuple(figure_effects.paired_over_splits(runs, better, worse) for better, worse in pairs)
         return Reading(parts, "; ".join(map(str, parts)) + _revisions(runs, "mode", results),
                        _mixed(runs, "mode", results))
 
@@ -357,7 +356,7 @@ def _attention_at_junctions(results: Path) -> Verdict:
     hierarchy (:func:`fig4_effects`).
     """
     meshes = _fig4_test_meshes(results)
-    literal, ours = fig4_effects(meshes, PLAIN_READING)[0], fig4_effects(meshes, "ours")[0]
+    literal, ours = figure_effects.fig4_effects(meshes, PLAIN_READING)[0], figure_effects.fig4_effects(meshes, "ours")[0]
     return _both_readings(results, _record_configuration(results, "fig4_attention"),
                           Reading((literal,), f"{literal}, attention trained by the class loss alone"),
                           Reading((ours,), f"{ours}, attention trained towards boundaries too, so by construction"),
@@ -373,7 +372,7 @@ def _labels_survive(results: Path) -> Verdict:
     nonuniform minus uniform (:func:`fig4_effects`).
     """
     meshes = _fig4_test_meshes(results)
-    literal, ours = fig4_effects(meshes, PLAIN_READING)[1], fig4_effects(meshes, "ours")[1]
+    literal, ours = figure_effects.fig4_effects(meshes, PLAIN_READING)[1], figure_effects.fig4_effects(meshes, "ours")[1]
     level = f"labels kept at level {meshes.level.max()} and back"
     return _both_readings(results, _record_configuration(results, "fig4_attention"),
                           Reading((literal,), f"{level}: {literal}"), Reading((ours,), f"{level}: {ours}"),
@@ -388,8 +387,8 @@ def _cycles(results: Path) -> Verdict:
     that no peak is picked on the numbers it is scored on.
     """
     def read(runs) -> Reading:
-        units = fig11_units(runs)
-        rise = pooled({c: u[1] for c, u in units.items()}, f"N = {reference.FIG11_CHOICE['cycles']} − N = 1")
+        units = figure_effects.fig11_units(runs)
+        rise = figure_effects.pooled({c: u[1] for c, u in units.items()}, f"N = {reference.FIG11_CHOICE['cycles']} − N = 1")
         shares = "; ".join(f"{c} {', '.join(f'{r:g}' for r in u[0].index.unique('removed'))}" for c, u in units.items())
         arms = runs.astype({"cycles": str})
         return Reading((rise,), f"{rise} (shares removed: {shares}){_revisions(arms, 'cycles', results)}",
@@ -402,22 +401,23 @@ def _cycles(results: Path) -> Verdict:
 def _best_setting(results: Path) -> Verdict:
     """The paper's point (N = 4, removing 0.5) minus the best other point of the category's grid, per (category, split).
 
-    The rival is picked by its mean over the same splits, which favours it
-    (the winner's curse: the best of many points measured on the same runs
-    is biased upwards), so a loss of the paper's choice is overstated and a
-    tie or better is read against that bias; the row says so.
+    Each split's rival is picked by its mean over the other splits
+    (:func:`anseg.study.figure_effects.cross_fitted_rivals`): picked on the
+    runs it is scored on, it would be favoured (the winner's curse), and a
+    loss of the paper's choice overstated.
     """
     def read(runs) -> Reading:
-        units = fig11_units(runs)
-        gap = pooled({c: u[2] for c, u in units.items()}, "the paper's point − the best other")
-        rivals = "; ".join(f"{c} N = {u[3][1]}, removing {u[3][0]:g} (of {len(u[0])} points)" if u[3] is not None
-                           else f"{c}: the paper's choice not run" for c, u in units.items())
+        units = figure_effects.fig11_units(runs)
+        gap = figure_effects.pooled({c: u[2] for c, u in units.items()}, "the paper's point − the best other")
+        rivals = "; ".join(f"{c} {figure_effects.describe_rivals(u[3])} (of {len(u[0])} points)" if u[3] is not None
+                           else f"{c}: the paper's choice not run, or one split" for c, u in units.items())
         grid = runs.assign(point=runs.removed.astype(str) + "/" + runs.cycles.astype(str))
-        return Reading((gap,), f"{gap} (best other point: {rivals}){_revisions(grid, 'point', results)}",
+        return Reading((gap,), f"{gap} (best other point, picked on the other splits: {rivals})"
+                               f"{_revisions(grid, 'point', results)}",
                        _mixed(grid, "point", results))
 
     return _two_readings(results, "fig11_cycles_ratio.csv", "fig11_cycles_ratio", read,
-                         "rival picked on these runs (winner's curse)")
+                         "each split's rival picked on the other splits")
 
 
 def _features(results: Path) -> Verdict:
@@ -427,7 +427,7 @@ def _features(results: Path) -> Verdict:
     two parts are one number, and the row says it once (both still judged).
     """
     def read(runs) -> Reading:
-        best, agd = feature_effects(runs)
+        best, agd = figure_effects.feature_effects(runs)
         if best.values.equals(agd.values):  # the best other set is edge+gc+sdf everywhere: one number (one verdict)
             once = Effect(f"{agd.name} (the best other set)", agd.values, agd.mean, agd.low, agd.high)
             return Reading((once,), str(once) + _revisions(runs, "features", results),
