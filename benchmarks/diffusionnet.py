@@ -14,8 +14,8 @@ one mesh per step, the last model scored.
 
 One run each, one seed: a rerun with another seed or device is not expected
 to match to the last digit. On one CPU thread a PSB category takes 20 to 90
-minutes (20 meshes, 200 epochs); the human set's 381 training meshes are a
-GPU's work.
+minutes (20 meshes, 200 epochs); the human set (381 training meshes of about
+1,500 faces) has not been timed here.
 
 Usage::
 
