@@ -97,13 +97,13 @@ def _shown(browser) -> str | None:
 def _click(browser, selector: str, shows: str):
     """Click the page's button ``selector`` and wait until the page says it shows ``shows`` ("colouring level")."""
     browser.js(f"document.querySelector('#anseg-legend {selector}').click(); true")
-    wait(lambda: _shown(browser) == shows, 30, f"the page to show {shows}")
+    wait(lambda: _shown(browser) == shows, 120, f"the page to show {shows}")
 
 
 def _picture(browser, name: str, folder) -> np.ndarray:
     """The window once the view has drawn, kept as ``name`` in the screenshot folder."""
     view = browser.box("#anseg-view")
-    picture = screenshot_when(browser, lambda shot: window_share(shot, view) > 0.01, 60, "the view to draw", folder)
+    picture = screenshot_when(browser, lambda shot: window_share(shot, view) > 0.01, 300, "the view to draw", folder)
     keep(name, picture, folder)
     return picture
 
