@@ -41,6 +41,23 @@ def test_fast_is_the_default_with_larger_patches_and_fewer_rebuilds():
                                                  replace(train, recollapse_every=TrainConfig().recollapse_every))
 
 
+def test_grad_pose_is_the_arm_the_suite_confirm_adopted():
+    """The named configuration trains what the confirm's grad-pose cells trained (their records' settings)."""
+    import json
+
+    from anseg.study.store import REPO, recorded_settings
+
+    cells = [json.loads(p.read_text()) for p in sorted((REPO / "results/validation/confirm-grad-pose/runs").glob("*.json"))]
+    adopted = [recorded_settings(c) for c in cells if c["arm"] == "grad-pose"]
+    if not adopted:
+        pytest.skip("the grad-pose confirm's cells are not in this checkout")
+    segment, train = configuration("grad-pose")
+    for cell_segment, cell_train in adopted:
+        assert cell_segment == replace(segment, seed=cell_segment.seed)
+        assert cell_train == replace(train, seed=cell_train.seed, epochs=cell_train.epochs)
+    assert configuration("default") != (segment, train)
+
+
 def test_overrides_go_on_top_of_a_named_configuration():
     segment, train = configuration("paper", "combine=all,train.width=128")
     assert segment.combine == "all" and train.width == 128 and train.attention_weight == 0.0
