@@ -381,6 +381,8 @@ def test_the_readmes_rows_are_short_and_say_what_they_read(results):
     features = short["All four feature groups"]
     assert features.count("edge+gc+sdf+agd − ") == 1 or "best other set" in features.split("−")[1]
     evidence = table.set_index("claim")["our evidence"]
+    for claim in ("Downsampling order", "More cycles help", "N = 4, ratio 0.5", "All four feature groups"):
+        assert "CPU" in evidence[claim], claim  # the readings' CPUs, in full (the README's Table IV says it once)
     for claim in ("Downsampling order", "More cycles help"):  # the drift, between revisions and machines, in full
         if "revision_drift.csv" in evidence[claim]:
             assert "of the 7 moved from the accuracy stored" in evidence[claim]
@@ -396,7 +398,7 @@ def test_selection_counts_the_test_meshes_the_settings_were_chosen_on():
 
 
 def test_a_table_whose_readings_differ_in_cpu_says_so(tmp_path):
-    from anseg.study.headline import _cpus
+    from anseg.study.revisions import cpus as _cpus
 
     (tmp_path / "runs").mkdir()
     for key, model in (("a", "AMD EPYC 9R14"), ("b", "Intel(R) Xeon(R) Processor"), ("c", None)):

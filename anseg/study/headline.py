@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from anseg.study import figure_effects, ledger, selection
+from anseg.study import figure_effects, ledger, revisions, selection
 from anseg.study.plan import PLAIN_READING, TABLE_IV_ROWS, papers_method_file
 
 HEADLINE_START = "<!-- headline: written by `python -m anseg.study.reproduce --data real` from results/*.csv; do not edit -->"
@@ -18,28 +18,6 @@ def _markdown_row(label, values) -> str:
     import pandas as pd
 
     return f"| {label} | " + " | ".join("" if pd.isna(v) else f"{v:.2f}" for v in values) + " |"
-
-
-def _cpus(readings, results_dir: Path) -> str:
-    """" " and what the run records say of the CPUs that trained each reading's runs (a table whose readings differ
-    in CPU says so); where a record names none, what docs/reproducibility.md has as evidence instead."""
-    import json
-
-    from anseg.study.store import NOT_RECORDED, cpu_of
-
-    found = {}
-    for name, runs in readings:
-        paths = [results_dir / "runs" / f"{key}.json" for key in runs.get("key", [])]
-        found[name] = {cpu_of(json.loads(p.read_text())) for p in paths if p.is_file()}
-    if not any(found.values()):
-        return ""
-    if any(NOT_RECORDED in cpus for cpus in found.values()):
-        return (" The run records name no CPU model; docs/reproducibility.md has the evidence that the "
-                f"`{PLAIN_READING}` runs were trained on an Intel Xeon and the default's in part on an AMD EPYC, so "
-                "the two readings differ in CPU too.")
-    if len(set().union(*found.values())) > 1:
-        return " **These runs mix CPUs:** " + "; ".join(f"{n}: {', '.join(sorted(c))}" for n, c in found.items()) + "."
-    return f" Every run trained on {next(iter(set().union(*found.values())))}."
 
 
 def headline(results_dir: Path) -> str:
@@ -82,7 +60,7 @@ def headline(results_dir: Path) -> str:
               "ours (paper); \"none\" is the paper's row, a per-face classifier without attention or downsampling, "
               "and \"none, transformer\" our network on the input mesh alone (no paper number). Each category twice: "
               f"at our strongest (the default) and literally (`{PLAIN_READING}`, the paper's method as written)"
-              + (f"; {selected}" if selected else "") + "." + _cpus(readings, results_dir), "",
+              + (f"; {selected}" if selected else "") + "." + revisions.cpus(readings, results_dir), "",
               "| category | reading | " + " | ".join(rows) + " |", "|---|---|" + "---|" * len(rows)]
     literal_means = (None if literal is None else
                      literal.groupby(["category", "mode"]).unit_area.agg(["mean", "std"]).unstack())

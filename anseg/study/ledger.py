@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -300,18 +300,21 @@ def _two_readings(results: Path, name: str, source: str, read, says: str) -> Ver
     reading there is, and the row says so.
     """
     own = _record_configuration(results, source)
-    ours = read(_csv(results, name))
+    own_runs = _csv(results, name)
+    ours = read(own_runs)
     if own == PLAIN_READING:
         first, _ = _readings(results, own)
         return Verdict(f"{first} alone: {ours.detail}; {says}", ours.verdict, (own,),
                        f"{first} alone: {ours.short(True)}; {says}{_selected(*ours.effects, brief=True)}")
     try:
-        literal = read(_csv(results, papers_method_file(name)))
+        literal_runs = _csv(results, papers_method_file(name))
     except MissingResult:
         _, second = _readings(results, own or "ours")
         return Verdict(f"the paper's method as written ({PLAIN_READING} configuration) not all run here yet; {second}, "
                        f"not judged alone: {ours.detail}", UNTESTED, (own,) if own else ())
-    return _both_readings(results, own, literal, ours, says)
+    found = _both_readings(results, own, read(literal_runs), ours, says)
+    machines = revisions.cpus([("the default", own_runs), (f"`{PLAIN_READING}`", literal_runs)], results)
+    return replace(found, evidence=found.evidence + ("." + machines if machines else ""))
 
 
 def _ablation_order(results: Path) -> Verdict:

@@ -1,4 +1,4 @@
-"""Which code revisions a paired comparison reads.
+"""Which code revisions, and which CPUs, a paired comparison reads.
 
 A difference between two arms whose runs were trained by different code is
 a difference of code as well: moving the code has moved single categories
@@ -12,7 +12,9 @@ sentence says how far the same runs moved from one revision to another (on
 one machine, since another CPU moves a run by itself), or that this was not
 measured; and, since the file keeps each run's stored accuracy too, how many
 moved from it on the replay machine (:func:`machine_drift`): the size of what
-a change of CPU alone does, beside what a change of code did.
+a change of CPU alone does, beside what a change of code did. For the same
+reason a table or row whose arms were trained on different CPUs says so
+(:func:`cpus`).
 """
 
 from __future__ import annotations
@@ -112,3 +114,24 @@ def machine_drift(table) -> str:
     return (f"retrained on {machines}, {len(moved)} of the {len(runs)} moved from the accuracy stored on the CPU that "
             f"trained them (not recorded in the runs; an AMD EPYC, docs/reproducibility.md), most {example}")
 
+
+def cpus(readings, results_dir: Path) -> str:
+    """" " and what the run records say of the CPUs that trained each reading's runs, ``readings`` being (name,
+    runs table with a ``key`` column) pairs: a table whose readings differ in CPU says so; where a record names none,
+    what docs/reproducibility.md has as evidence instead."""
+    from anseg.study.plan import PLAIN_READING
+    from anseg.study.store import NOT_RECORDED, cpu_of
+
+    found = {}
+    for name, runs in readings:
+        paths = [results_dir / "runs" / f"{key}.json" for key in runs.get("key", [])]
+        found[name] = {cpu_of(json.loads(p.read_text())) for p in paths if p.is_file()}
+    if not any(found.values()):
+        return ""
+    if any(NOT_RECORDED in cpus for cpus in found.values()):
+        return (" The run records name no CPU model; docs/reproducibility.md has the evidence that the "
+                f"`{PLAIN_READING}` runs were trained on an Intel Xeon and the default's in part on an AMD EPYC, so "
+                "the two readings differ in CPU too.")
+    if len(set().union(*found.values())) > 1:
+        return " **These runs mix CPUs:** " + "; ".join(f"{n}: {', '.join(sorted(c))}" for n, c in found.items()) + "."
+    return f" Every run trained on {next(iter(set().union(*found.values())))}."
