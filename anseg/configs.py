@@ -31,7 +31,7 @@ overrides on top; the same names and override syntax serve the CLI
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import asdict, fields
 
 from anseg.features import DEFAULT_GROUPS
 from anseg.pipeline import SegmentConfig
@@ -92,3 +92,27 @@ def configuration(name: str = "default", text: str = "") -> tuple[SegmentConfig,
     """The (SegmentConfig, TrainConfig) pair of a named configuration, with ``text``'s overrides on top."""
     segment, train = overrides(name, text)
     return SegmentConfig(**segment), TrainConfig(**train)
+
+
+# what each setting in which the default departs from the paper's method as written does (the values come from the code;
+# the README's table of the two readings)
+DEPARTURES = {
+    "groups": "descriptors per face",
+    "smooth_weight": "the graph cut's weight",
+    "combine": "which levels vote on each input face's label",
+    "once_per_pass": "a face collapses at most once per pass",
+    "priority": "the collapse order: by attention score, or decimation weighted by attention",
+    "density_range": "how much coarser than the uniform collapse a low-attention region may get",
+    "average_last": "weights averaged over the last epochs",
+    "attention_weight": "attention also trained towards part boundaries (0: through the class loss alone)",
+}
+
+
+def departures() -> list[tuple[str, str, str, str]]:
+    """Every setting in which the default differs from the ``paper`` configuration: (setting, paper, default, what)."""
+    rows = []
+    for prefix, paper, ours in zip(("", "train."), configuration("paper"), configuration("default")):
+        paper, ours = asdict(paper), asdict(ours)
+        rows += [(prefix + name, paper[name], ours[name], DEPARTURES.get(name, ""))
+                 for name in paper if paper[name] != ours[name]]
+    return rows

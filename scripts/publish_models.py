@@ -41,7 +41,8 @@ SOURCES = {"table1_psb.ipynb": lambda run: f"psb/{run.category}" if run.split ==
            else None,
            "table3_human.ipynb": lambda run: "human_seg",
            "table2_coseg.ipynb": lambda run: run.dataset if run.category is None else None}
-# the runs whose models the figure notebooks render (fig12: the first category, split 0), as those notebooks load them
+# the runs whose models the figure notebooks load (fig4: every run, its claims read each split's; fig12: the first category,
+# split 0, rendered)
 RENDERED = {"fig4_attention.ipynb": lambda run, p: True,
             "fig12_features.ipynb": lambda run, p: run.split == 0 and run.category == p["categories"][0]}
 FIGURE_MODELS = REPO / "results" / "models"

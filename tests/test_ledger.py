@@ -10,13 +10,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from anseg import configs, datasets
 from anseg.study import figure_effects, ledger, reference
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 UNTESTABLE = {"COSEG accuracy", "Better than MeshCNN and Guo et al.", "Cost"}
 CATEGORIES, SPLITS, MESHES = ("Airplane", "Human", "Teddy"), range(4), [f"Human/{i}" for i in range(8)]
-ABLATION_RUNS = ("table4_ablation_runs.csv", "fig11_cycles_ratio.csv", "fig12_features.csv")  # read two ways
-ABLATION_CLAIMS = {"Downsampling order", "More cycles help", "N = 4, ratio 0.5", "All four feature groups"}
+ABLATION_RUNS = ("table4_ablation_runs.csv", "table4_every_category_runs.csv", "fig11_cycles_ratio.csv",
+                 "fig12_features.csv")  # read two ways
+ABLATION_CLAIMS = {"Downsampling order", "Order, every category", "More cycles help", "N = 4, ratio 0.5",
+                   "All four feature groups"}
 TWO_READINGS = ABLATION_CLAIMS | {"Attention at junctions", "Labels survive"}
 HUMAN_PARAMETERS = {"dataset": "human_seg", "config": "default", "epochs": 60, "seed": 0, "device": "auto", "smoke": False,
                     "category": None, "output_dir": ".."}
@@ -94,6 +97,11 @@ def write_ablations(folder: Path, claim: str, delta, literal=None) -> None:
     pd.DataFrame([{"category": c, "split": s, "mode": mode, "unit_area": level(c, s) + steps * d}
                   for c, s, d in units for mode, steps in (("none", 0), ("uniform", 1), ("nonuniform", 2))]
                  ).to_csv(folder / "table4_ablation_runs.csv", index=False)
+    # and on split 0 of every PSB category, one unit each
+    pd.DataFrame([{"category": c, "split": 0, "mode": mode, "unit_area": 80.0 + i + steps * delta(i)}
+                  for i, c in enumerate(datasets.PSB_CATEGORIES) for mode, steps in (("none", 0), ("uniform", 1),
+                                                                                  ("nonuniform", 2))]
+                 ).to_csv(folder / "table4_every_category_runs.csv", index=False)
 
     # Fig. 4: AUC 0.5 + effect on the coarse levels (in hundredths); labels kept, nonuniform = uniform + effect
     if literal is not None:
@@ -222,6 +230,25 @@ def test_the_two_stage_bootstrap_resamples_categories_then_splits():
     assert ledger.effect(values.rename_axis(["category", "split"]), "x").low == found.low  # the seed is fixed
 
 
+def test_fig4_with_a_model_per_split_resamples_models_then_their_meshes():
+    # two splits' models on two meshes each; the second model is worse on both, so its spread must widen the interval
+    rows = [{"model": "ours", "downsampling": mode, "split": split, "mesh": f"Human/{m}", "level": level,
+             "attention AUC, near vs elsewhere": 0.5 + (0.2 if split == 0 else -0.1) + 0.01 * m,
+             "labels kept (%)": 90.0 + (mode == "nonuniform") * (2.0 if split == 0 else -1.0)}
+            for split in (0, 1) for m in (1, 2) for mode in ("uniform", "nonuniform") for level in (0, 1)]
+    meshes = pd.DataFrame(rows)
+    attention, labels = figure_effects.fig4_effects(meshes, "ours")
+    assert list(attention.values.index.names) == ["split", "mesh"]
+    assert attention.units == "2 models (one per split) × 2 test meshes"
+    assert attention.mean == pytest.approx(np.mean([0.215, -0.085]))  # the mean of the models' means
+    assert (labels.low, labels.high) == pytest.approx((-1.0, 2.0))  # a draw of one model twice reaches either end
+    # one model: its meshes, one stage, as before the split column
+    alone = figure_effects.fig4_effects(meshes[meshes.split == 0].drop(columns="split"), "ours")[0]
+    assert alone.values.index.name == "mesh" and alone.units == "2 test meshes"
+    same = figure_effects.fig4_effects(meshes[meshes.split == 0], "ours")[0]
+    assert (same.low, same.high, same.units) == (alone.low, alone.high, alone.units)
+
+
 def test_one_unit_has_no_interval_and_decides_nothing():
     alone = ledger.effect(pd.Series([5.0], index=pd.Index(["the table's number"], name="mesh")), "x")
     assert alone.verdict == ledger.TIED and "one unit, no interval" in str(alone)
@@ -263,10 +290,10 @@ def test_every_claim_gets_one_of_five_verdicts_from_the_committed_results(result
     assert set(table[table.claim.isin(UNTESTABLE)].verdict) == {ledger.UNTESTED}
     markdown = ledger.markdown(table)
     assert markdown.startswith(ledger.RULE) and ledger.LIMITATION in markdown
-    assert markdown.count("\n| ") == len(table) + 1 + len(ledger.departures()) + 1
+    assert markdown.count("\n| ") == len(table) + 1 + len(configs.departures()) + 1
     # what the default changes from the paper's method, each setting from the code, the two that decide ablations among them
-    changed = {name for name, *_ in ledger.departures()}
-    assert {"combine", "train.attention_weight"} <= changed and all(what for *_, what in ledger.departures())
+    changed = {name for name, *_ in configs.departures()}
+    assert {"combine", "train.attention_weight"} <= changed and all(what for *_, what in configs.departures())
 
 
 def test_the_committed_verdicts_are_their_effects_intervals(results):

@@ -1,8 +1,9 @@
 """The one paired test every claim of the ledger is read by: an effect per unit, its mean and 95 % bootstrap interval.
 
 Units are (category, split) pairs, resampled in two stages (categories, then
-the splits inside each, since categories differ far more than splits), or
-test meshes, resampled in one. The interval above 0 reads ``reproduced``,
+the splits inside each, since categories differ far more than splits), test
+meshes of one model per split (models, then meshes), or test meshes of one
+model, resampled in one stage. The interval above 0 reads ``reproduced``,
 below 0 ``not reproduced``, holding 0 or resting on one unit ``not
 distinguishable``; a claim of several parts needs every part; a claim read two
 ways (:func:`across_readings`) stands where both readings agree and
@@ -41,8 +42,11 @@ class Effect:
         index = self.values.index
         if index.nlevels == 2:
             counts = self.values.groupby(level=0).size()
-            splits = f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}"
-            return f"{len(counts)} categor{'y' if len(counts) == 1 else 'ies'} × {splits} split{'' if splits == '1' else 's'}"
+            inner = f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}"
+            if list(index.names) == ["split", "mesh"]:  # one trained model per split, each scored on its test meshes
+                return (f"{len(counts)} model{'' if len(counts) == 1 else 's'} (one per split) × {inner} test "
+                        f"mesh{'' if inner == '1' else 'es'}")
+            return f"{len(counts)} categor{'y' if len(counts) == 1 else 'ies'} × {inner} split{'' if inner == '1' else 's'}"
         noun = "test mesh" if index.name == "mesh" else index.name or "unit"
         return f"{len(index)} {noun}{'' if len(index) == 1 else 'es' if noun.endswith('sh') else 's'}"
 
@@ -60,10 +64,11 @@ class Effect:
 def effect(values, name: str) -> Effect:
     """The mean of ``values`` (a Series of per-unit effects) and its 95 % percentile bootstrap interval.
 
-    Indexed by (category, split): two-stage, categories drawn with
-    replacement, then as many splits as the category has, drawn with
-    replacement inside it; the statistic is the mean of the category means.
-    Indexed by one level: one stage. :data:`DRAWS` draws from a generator
+    Indexed by two levels, (category, split) or (split, mesh) for one
+    model per split: two-stage, the outer units drawn with replacement, then
+    as many inner units as the outer one has, drawn with replacement inside
+    it; the statistic is the mean of the outer means (so a model's spread
+    counts, not only its meshes'). Indexed by one level: one stage. :data:`DRAWS` draws from a generator
     seeded with :data:`SEED`, so a result gives the same interval every time.
     """
     values = values.dropna()

@@ -44,17 +44,21 @@ def fig4_summary(meshes):
 
 
 def fig4_effects(meshes, model: str) -> tuple[Effect, Effect]:
-    """The two claims Fig. 4 reads, per test mesh, for one model (the rule of the ledger).
+    """The two claims Fig. 4 reads, per test mesh, for one reading (the rule of the ledger).
 
     Attention: the AUC of near-boundary faces minus 0.5 (chance), averaged
     over the coarse levels (1 and up) of the model's nonuniform hierarchy.
     Labels: the share of the area whose true label survives the coarsest
-    level and back, nonuniform minus uniform.
+    level and back, nonuniform minus uniform. Where the table holds one
+    trained model per split (its ``split`` column), the units are (split,
+    mesh) and the bootstrap draws models, then meshes: one model's luck is
+    part of the interval. One model: its test meshes, one stage.
     """
     own = meshes[meshes.model == model]
+    units = ["split", "mesh"] if "split" in own and own["split"].nunique() > 1 else ["mesh"]
     nonuniform = own[(own.downsampling == "nonuniform") & (own.level > 0)]  # level 0 is the input mesh
-    auc = nonuniform.groupby("mesh")["attention AUC, near vs elsewhere"].mean() - 0.5
-    coarsest = own[own.level == own.level.max()].pivot_table(index="mesh", columns="downsampling", values="labels kept (%)")
+    auc = nonuniform.groupby(units)["attention AUC, near vs elsewhere"].mean() - 0.5
+    coarsest = own[own.level == own.level.max()].pivot_table(index=units, columns="downsampling", values="labels kept (%)")
     return (effect(auc, "AUC − 0.5"), effect(coarsest["nonuniform"] - coarsest["uniform"], "nonuniform − uniform"))
 
 

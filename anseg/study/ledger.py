@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anseg.configs import departures
 from anseg.study import figure_effects, reference, revisions, selection
 from anseg.study.effects import (
     DEPENDS,
@@ -317,6 +318,24 @@ def _two_readings(results: Path, name: str, source: str, read, says: str) -> Ver
     return replace(found, evidence=found.evidence + ("." + machines if machines else ""))
 
 
+ORDER = (("nonuniform", "uniform"), ("uniform", "none"))  # Table IV's claim, two parts
+
+
+def _order_reading(results: Path):
+    """The :class:`Reading` of a table of Table IV's runs: each part of :data:`ORDER` paired per (category, split)."""
+    def read(runs) -> Reading:
+        parts = tuple(figure_effects.paired_over_splits(runs, better, worse) for better, worse in ORDER)
+        return Reading(parts, "; ".join(map(str, parts)) + _revisions(runs, "mode", results),
+                       _mixed(runs, "mode", results))
+    return read
+
+
+def _papers_order() -> str:
+    """The paper's two differences (its Table IV, the mean over its three categories)."""
+    modes = reference.TABLE_IV["modes"]
+    return ", ".join(f"{np.mean([modes[b][c] - modes[w][c] for c in modes[b]]):+.2f}" for b, w in ORDER)
+
+
 def _ablation_order(results: Path) -> Verdict:
     """Table IV's orderings, two parts: nonuniform − uniform and uniform − none, per (category, split), both readings.
 
@@ -324,16 +343,8 @@ def _ablation_order(results: Path) -> Verdict:
     shown beside ours, and where the validation reports exist, the same
     controls on held-out training meshes (not judged).
     """
-    modes = reference.TABLE_IV["modes"]
-    pairs = (("nonuniform", "uniform"), ("uniform", "none"))
-
-    def read(runs) -> Reading:
-        parts = tuple(figure_effects.paired_over_splits(runs, better, worse) for better, worse in pairs)
-        return Reading(parts, "; ".join(map(str, parts)) + _revisions(runs, "mode", results),
-                       _mixed(runs, "mode", results))
-
-    paper = ", ".join(f"{np.mean([modes[b][c] - modes[w][c] for c in modes[b]]):+.2f}" for b, w in pairs)
-    verdict = _two_readings(results, "table4_ablation_runs.csv", "table4_ablation", read, f"paper {paper}")
+    verdict = _two_readings(results, "table4_ablation_runs.csv", "table4_ablation", _order_reading(results),
+                            f"paper {_papers_order()}")
     try:
         paired = _csv(results / "validation", "confirm2-controls-suite_paired.csv")
         held_out = "; held out, against nonuniform, the default, not judged: " + ", ".join(
@@ -342,6 +353,15 @@ def _ablation_order(results: Path) -> Verdict:
     except MissingResult:
         pass
     return verdict
+
+
+def _order_everywhere(results: Path) -> Verdict:
+    """Table IV's orderings on split 0 of every PSB category (the clean test, one unit per category), both readings,
+    beside the paper's three categories."""
+    if not (results / "table4_every_category_runs.csv").is_file():
+        raise MissingResult("split 0 of every PSB category is not run yet (table4_ablation with every_category)")
+    return _two_readings(results, "table4_every_category_runs.csv", "table4_ablation", _order_reading(results),
+                         f"paper, on its 3 categories, {_papers_order()}")
 
 
 def _fig4_test_meshes(results: Path):
@@ -492,6 +512,8 @@ CLAIMS = [
     Claim("Human body accuracy", "93.12 on the human body set, 381 training / 18 test models (Table III)", _human,
           ("table3_human",)),
     Claim("Downsampling order", "nonuniform > uniform > none (Table IV)", _ablation_order, ("table4_ablation",)),
+    Claim("Order, every category", "nonuniform > uniform > none (Table IV, on 3 categories)", _order_everywhere,
+          ("table4_ablation",)),
     Claim("Attention at junctions", "attention concentrates at details and part junctions (Fig. 4)", _attention_at_junctions,
           ("fig4_attention",), (PLAIN_READING,)),
     Claim("More cycles help", "accuracy rises with N, then levels off or falls (Fig. 11)", _cycles, ("fig11_cycles_ratio",)),
@@ -550,33 +572,6 @@ def ledger(results: str | Path, benchmark: bool = True):
                                        else _configurations(Path(results), claim.sources, claim.also_reads)),
                      "verdict": verdict.verdict})
     return pd.DataFrame(rows)
-
-
-# what each setting in which the default departs from the paper's method as written does (the values come from the code)
-DEPARTURES = {
-    "groups": "descriptors per face",
-    "smooth_weight": "the graph cut's weight",
-    "combine": "which levels vote on each input face's label",
-    "once_per_pass": "a face collapses at most once per pass",
-    "priority": "the collapse order: by attention score, or decimation weighted by attention",
-    "density_range": "how much coarser than the uniform collapse a low-attention region may get",
-    "average_last": "weights averaged over the last epochs",
-    "attention_weight": "attention also trained towards part boundaries (0: through the class loss alone)",
-}
-
-
-def departures() -> list[tuple[str, str, str, str]]:
-    """Every setting in which the default differs from the ``paper`` configuration: (setting, paper, default, what)."""
-    from dataclasses import asdict
-
-    from anseg.configs import configuration
-
-    rows = []
-    for prefix, paper, ours in zip(("", "train."), configuration(PLAIN_READING), configuration("default")):
-        paper, ours = asdict(paper), asdict(ours)
-        rows += [(prefix + name, paper[name], ours[name], DEPARTURES.get(name, ""))
-                 for name in paper if paper[name] != ours[name]]
-    return rows
 
 
 def _value(value) -> str:

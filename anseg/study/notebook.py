@@ -98,26 +98,30 @@ class NotebookRun:
         experiment, options = planned_experiment(run, {**self.parameters, "config": config})
         return self.store.get(experiment.key(options))
 
-    def other_configuration(self, config: str) -> tuple[list[tuple[PlannedRun, dict]], int]:
-        """The runs this notebook plans under another named configuration that the store holds, with their results
-        (read, never trained), and how many it plans."""
-        planned = notebook_runs(f"{self.name}.ipynb", {**self.parameters, "config": config})
+    def other_configuration(self, config: str, select=None) -> tuple[list[tuple[PlannedRun, dict]], int]:
+        """The runs this notebook plans under another named configuration (those ``select`` keeps, where given) that
+        the store holds, with their results (read, never trained), and how many it plans."""
+        planned = [run for run in notebook_runs(f"{self.name}.ipynb", {**self.parameters, "config": config})
+                   if select is None or select(run)]
         found = [(run, result) for run in planned if (result := self.stored_result(run, config)) is not None]
         self.read.update({result["key"]: result for _, result in found})
         return found, len(planned)
 
-    def papers_method(self, runs_file: str):
+    def papers_method(self, runs_file: str, select=None):
         """This notebook's runs under the paper's configuration, as a runs table written for the claims ledger
         (:func:`~anseg.study.plan.papers_method_file` of ``runs_file``), and None; or None and what to say instead
         (Markdown) where the notebook runs that configuration itself or some of its runs are not stored yet (a
-        table from an earlier run is removed then: part of the runs must not stand for all of them)."""
+        table from an earlier run is removed then: part of the runs must not stand for all of them).
+
+        ``select`` (a test on a :class:`PlannedRun`) keeps part of the plan, for a table of its own: only
+        those runs are read and need to be stored."""
         import pandas as pd
 
         if self.parameters["config"] == PLAIN_READING:
             return None, ("This notebook runs the paper's method as written itself: the readings above are the ones "
                           "the ledger judges.")
         path = self.results_dir / papers_method_file(runs_file)
-        found, planned = self.other_configuration(PLAIN_READING)
+        found, planned = self.other_configuration(PLAIN_READING, select)
         if len(found) < planned:
             path.unlink(missing_ok=True)
             return None, (f"**The paper's method as written** (`{PLAIN_READING}` configuration): {len(found)} of its "

@@ -123,13 +123,17 @@ def table4_rows(config: str) -> list[str]:
     return [row for row in TABLE_IV_ROWS if config != PLAIN_READING or row != "none, transformer"]
 
 
-@notebook("table4_ablation.ipynb", real={"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4]},
-          synthetic={"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1]},
-          smoke={"categories": ["figure"], "splits": [0]})
+@notebook("table4_ablation.ipynb", real={"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4], "every_category": False},
+          synthetic={"categories": SYNTHETIC_CATEGORIES, "splits": [0, 1], "every_category": False},
+          smoke={"categories": ["figure"], "splits": [0], "every_category": True})
 def _table4(p: dict) -> list[PlannedRun]:
-    """Split by split, as Table I."""
-    return [PlannedRun({"category": c, "split": s, "mode": row}, p["dataset"], c, s, *TABLE_IV_ROWS[row])
-            for s in p["splits"] for c in p["categories"] for row in table4_rows(p["config"])]
+    """Split by split, as Table I; with ``every_category``, also split 0 (the clean test) of every other category
+    of the data set, for the claim read over every category."""
+    others = [c for c in dataset_categories(p["dataset"]) if c not in p["categories"]] if p["every_category"] else []
+    return ([PlannedRun({"category": c, "split": s, "mode": row}, p["dataset"], c, s, *TABLE_IV_ROWS[row])
+             for s in p["splits"] for c in p["categories"] for row in table4_rows(p["config"])]
+            + [PlannedRun({"category": c, "split": 0, "mode": row}, p["dataset"], c, 0, *TABLE_IV_ROWS[row])
+               for c in others for row in table4_rows(p["config"])])
 
 
 @notebook("fig12_features.ipynb", real={"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4]},
@@ -167,16 +171,19 @@ def _fig11(p: dict) -> list[PlannedRun]:
             for s in p["splits"] for c in p["categories"] for r in p["removed"][c] for n in p["cycles_list"] if wanted(r, n)]
 
 
-@notebook("fig4_attention.ipynb", real={"category": "Human"}, synthetic={"category": "figure"},
-          smoke={"category": "figure"})
+@notebook("fig4_attention.ipynb", real={"category": "Human", "model_splits": [0]},
+          synthetic={"category": "figure", "model_splits": [0]}, smoke={"category": "figure", "model_splits": [0]})
 def _fig4(p: dict) -> list[PlannedRun]:
-    """The three modes, and the paper's unsupervised attention (Table I's run)."""
+    """Split 0's three modes (Figs. 4 and 10), and per split of ``model_splits`` the two nonuniform models the
+    claims read: the configuration's and the paper's unsupervised attention (Table I's runs)."""
     from anseg.configs import overrides
 
     plain_segment, plain_train = overrides(PLAIN_READING)
-    return ([PlannedRun({"mode": m}, p["dataset"], p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
-            + [PlannedRun({"mode": "nonuniform", "configuration": PLAIN_READING}, p["dataset"], p["category"], 0,
-                          plain_segment, plain_train)])
+    return ([PlannedRun({"mode": m, "split": 0}, p["dataset"], p["category"], 0, {"mode": m}) for m in DOWNSAMPLING_MODES]
+            + [PlannedRun({"mode": "nonuniform", "split": s}, p["dataset"], p["category"], s, {"mode": "nonuniform"})
+               for s in p["model_splits"] if s != 0]
+            + [PlannedRun({"mode": "nonuniform", "split": s, "configuration": PLAIN_READING}, p["dataset"], p["category"],
+                          s, plain_segment, plain_train) for s in p["model_splits"]])
 
 
 @notebook("explore.ipynb", real={"category": "Teddy", **EXPLORE_DEFAULTS},
@@ -220,13 +227,18 @@ def with_choices(p: dict, config: str | None = None, splits: list[int] | None = 
     return {**p, **({"config": config} if config else {}), **({"splits": list(splits)} if splits and "splits" in p else {})}
 
 
-def resolve_categories(p: dict) -> dict:
-    """``categories=None`` means every category of the data set."""
+def dataset_categories(dataset: str) -> list[str]:
+    """Every category of a data set with categories (PSB, synthetic)."""
     from anseg import datasets
     from anseg.datasets import synthetic
 
+    return list(synthetic.CATEGORIES if dataset == "synthetic" else datasets.PSB_CATEGORIES)
+
+
+def resolve_categories(p: dict) -> dict:
+    """``categories=None`` means every category of the data set."""
     if "categories" in p and p["categories"] is None:
-        p = {**p, "categories": list(synthetic.CATEGORIES if p["dataset"] == "synthetic" else datasets.PSB_CATEGORIES)}
+        p = {**p, "categories": dataset_categories(p["dataset"])}
     return p
 
 
