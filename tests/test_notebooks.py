@@ -117,8 +117,21 @@ def test_a_named_configuration_is_the_start_of_every_planned_run():
     default = planned_experiments("smoke", only=["table4"])
     assert {e.key(o) for e, o in paper}.isdisjoint(e.key(o) for e, o in default)
     # the paper's method as written runs the three rows the paper has; the default adds our transformer-only control
-    assert sorted(e.segment.mode for e, _ in paper) == ["none", "nonuniform", "uniform"]
-    assert len(default) == 4 and sum(e.segment.mode == "none" for e, _ in default) == 2
+    assert sorted(e.segment.mode for e, _ in paper if e.category == "figure") == ["none", "nonuniform", "uniform"]
+    assert len(default) == 8 and sum(e.segment.mode == "none" for e, _ in default) == 4  # smoke: every category too
+
+
+def test_every_category_adds_split_0_of_the_others_once():
+    from anseg import datasets
+    from anseg.study.plan import PSB_ABLATION, notebook_parameters, notebook_runs
+
+    p = notebook_parameters("table4_ablation.ipynb", "real")
+    assert p["every_category"] is False  # until the batch trains them
+    runs = notebook_runs("table4_ablation.ipynb", {**p, "every_category": True})
+    cells = [(r.category, r.split, r.row["mode"]) for r in runs]
+    assert len(cells) == len(set(cells))
+    assert {(c, s) for c, s, _ in cells} == ({(c, s) for c in PSB_ABLATION for s in range(5)}
+                                            | {(c, 0) for c in datasets.PSB_CATEGORIES})
 
 
 def test_the_papers_method_runs_the_cross_of_fig11_through_its_choice():
