@@ -23,7 +23,7 @@ from anseg.study.plan import (
     COMMON,
     PLAIN_READING,
     PLANS,
-    RECORD_CONFIGURATION,
+    RECORD_CONFIGURATIONS,
     PlannedRun,
     notebook_runs,
     notebook_settings,
@@ -133,15 +133,17 @@ class NotebookRun:
         runs.to_csv(path, index=False)
         return runs, None
 
-    def for_the_record(self, run: PlannedRun) -> dict | None:
-        """The stored result of ``run`` under the first study's configuration, kept beside ours; never trained.
+    def for_the_record(self, run: PlannedRun) -> dict[str, dict]:
+        """The stored results of ``run`` under the configurations kept for the record
+        (:data:`~anseg.study.plan.RECORD_CONFIGURATIONS`), by name, to set beside ours; never trained.
 
-        None where the store lacks it, or where this notebook runs that
-        configuration itself (the column would repeat ours).
+        A configuration is left out where the store lacks the run, or where
+        this notebook runs that configuration itself (the column would repeat
+        ours).
         """
-        if self.parameters["config"] == RECORD_CONFIGURATION:
-            return None
-        return self.stored_result(run, RECORD_CONFIGURATION)
+        found = {config: self.stored_result(run, config) for config in RECORD_CONFIGURATIONS
+                 if config != self.parameters["config"]}
+        return {config: result for config, result in found.items() if result is not None}
 
     def model_file(self, result: dict) -> Path | None:
         """The model file of a result: the store's, else the committed one the figures render, else the shipped one.
