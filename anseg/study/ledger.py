@@ -246,7 +246,8 @@ def _human(results: Path) -> Verdict:
 
 def _readings(results: Path, own: str) -> tuple[str, str]:
     """The two readings' names for a row: literal (``paper``) and strongest (``own``, the notebook's), each with its
-    PSB split-0 accuracy from Table I, the strongest with the paper's beside it (where Table I has them)."""
+    PSB split-0 accuracy from Table I (ours, or the column of a configuration kept for the record), the strongest
+    with the paper's beside it (where Table I has them)."""
     literal, strongest = f"literal (`{PLAIN_READING}`", f"strongest ({own}"  # with the accuracies the rule names
     try:
         mean = _csv(results, "table1_psb.csv", index_col=0).loc["mean"]
@@ -255,7 +256,8 @@ def _readings(results: Path, own: str) -> tuple[str, str]:
     plain = next((c for c in mean.index if c.startswith(f"{PLAIN_READING} configuration, unit area (split 0")), None)
     if plain is not None and np.isfinite(mean[plain]):
         literal += f", {mean[plain]:.2f}"
-    ours = next((c for c in mean.index if c.startswith("ours, unit area (split 0")), None)
+    column = "ours, unit area (split 0" if own in ("default", "ours") else f"{own} (for the record), unit area (split 0"
+    ours = next((c for c in mean.index if c.startswith(column)), None)
     if ours is not None:
         strongest += f", {mean[ours]:.2f}; paper {reference.TABLE_I['average']['Ours (paper)']:.2f}"
     return literal + ")", strongest + ")"
