@@ -28,8 +28,9 @@ def shapes():
 @pytest.fixture(scope="module")
 def model(shapes):
     torch.set_num_threads(1)
-    return fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=2, clusters=4), TrainConfig(epochs=1, width=16),
-               progress=False)
+    # the input's own face order (canonical off), so that level 0 is the input mesh itself; canonical below
+    return fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=2, clusters=4, canonical=False),
+               TrainConfig(epochs=1, width=16), progress=False)
 
 
 def test_a_mesh_above_the_limit_is_segmented_on_its_collapse_and_labelled_on_every_face(model, shapes):
@@ -50,6 +51,19 @@ def test_a_mesh_above_the_limit_is_segmented_on_its_collapse_and_labelled_on_eve
                for i, level in enumerate(result.levels))
     fill_attention(model, result.levels)
     assert first.attention is None and all(level.attention is not None for level in network_levels)
+
+
+def test_a_canonical_model_labels_every_face_above_the_limit_whatever_the_pose(model, shapes):
+    from scipy.spatial.transform import Rotation
+
+    from anseg.mesh import Mesh
+
+    config = replace(model.config, canonical=True, layout_frame="principal")
+    mesh = shapes[4].mesh
+    result = segment(mesh, model, config, network_faces=LIMIT)
+    assert result.labels.shape == (mesh.n_faces,) and result.levels[1].mesh.n_faces <= LIMIT + 1
+    turned = Mesh(Rotation.random(random_state=2).apply(mesh.vertices) * 3.0 - 1.0, mesh.faces[::-1])
+    np.testing.assert_array_equal(segment(turned, model, config, network_faces=LIMIT).labels[::-1], result.labels)
 
 
 def test_a_mesh_at_the_limit_is_segmented_whole(model, shapes):

@@ -280,7 +280,8 @@ def test_gradient_features_train_and_segment(split, tmp_path):
     model.save(tmp_path / "model.pt")
     assert np.array_equal(segment(test_set[0].mesh, Segmenter.load(tmp_path / "model.pt")).labels, labels)
     with pytest.raises(ValueError, match="diffusion_gradients need diffusion blocks"):
-        fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(diffusion_gradients=True, epochs=1), progress=False)
+        fit(train_set[:2], train_set[0].label_names, SMALL, TrainConfig(diffusion_blocks=0, diffusion_gradients=True, epochs=1),
+            progress=False)
 
 
 def test_spatial_context_switches_leave_the_keys_alone_at_zero():
