@@ -12,6 +12,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
+from anseg import datasets
 from anseg.study.headline import (
     HEADLINE_END,
     HEADLINE_START,
@@ -101,13 +102,20 @@ def test_real_plan_covers_every_table_once():
     fig11 = PLANS["fig11_cycles_ratio.ipynb"].parameters["real"]
     fig11_runs = sum(len(r) for r in fig11["removed"].values()) * len(fig11["cycles_list"]) * len(fig11["splits"])
     fig11_shared = len(fig11["removed"]) * len(fig11["splits"])
+    # Table IV's three other rows on split 0 of the other 13 categories where it reads every category; Fig. 4's models
+    # of the paper's method on its splits other than 0 (split 0's is Table I's)
+    every = PLANS["table4_ablation.ipynb"].parameters["real"]["every_category"]
+    fig4_splits = PLANS["fig4_attention.ipynb"].parameters["real"]["model_splits"]
+    extra = 13 * 3 * every + len(set(fig4_splits) - {0})
     # and Table I's column of the paper's method as written, on its first split
-    assert len(psb) == 16 * splits + 16 + 9 * table4_splits + 12 * fig12_splits + fig11_runs - fig11_shared
+    assert len(psb) == 16 * splits + 16 + 9 * table4_splits + 12 * fig12_splits + fig11_runs - fig11_shared + extra
     assert {e.dataset for e, _ in plan} == {"psb", "coseg_aliens", "coseg_chairs", "coseg_vases", "human_seg"}
     only = planned_experiments("real", only=["table4"], config="default")
     rows = [("nonuniform", 2), ("uniform", 2), ("none", 0), ("none", 2)]  # (mode, depth): depth 0 is the paper's "none"
+    units = {(c, s) for c in ("Human", "Teddy", "Airplane") for s in range(table4_splits)}
+    units |= {(c, 0) for c in datasets.PSB_CATEGORIES} if every else set()
     assert sorted((e.category, e.split_index, e.segment.mode, e.train.depth) for e, _ in only) == sorted(
-        (c, s, m, d) for c in ("Human", "Teddy", "Airplane") for s in range(table4_splits) for m, d in rows)
+        (c, s, m, d) for c, s in units for m, d in rows)
 
 
 def test_a_named_configuration_is_the_start_of_every_planned_run():
@@ -122,11 +130,9 @@ def test_a_named_configuration_is_the_start_of_every_planned_run():
 
 
 def test_every_category_adds_split_0_of_the_others_once():
-    from anseg import datasets
     from anseg.study.plan import PSB_ABLATION, notebook_parameters, notebook_runs
 
     p = notebook_parameters("table4_ablation.ipynb", "real")
-    assert p["every_category"] is False  # until the batch trains them
     runs = notebook_runs("table4_ablation.ipynb", {**p, "every_category": True})
     cells = [(r.category, r.split, r.row["mode"]) for r in runs]
     assert len(cells) == len(set(cells))
