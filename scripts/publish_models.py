@@ -13,7 +13,10 @@ is shipped already (a card names the run) is left as it is, so the script
 can be rerun as runs land. Trains nothing: a
 run whose result or model is not here is listed and left out. The test
 meshes are read only to check the float16 copy against the trained model,
-after the run's one reading of them.
+after the run's one reading of them, and to measure the card's pose
+agreement: per transform of ``benchmarks/metamorphic.py`` (a rotation,
+a scale and shift, new face and vertex orders, flipped faces, a mirror), the
+least share of a test mesh's area whose label the shipped model keeps.
 """
 
 from __future__ import annotations
@@ -46,6 +49,18 @@ SOURCES = {"table1_psb.ipynb": lambda run: f"psb/{run.category}" if run.split ==
 RENDERED = {"fig4_attention.ipynb": lambda run, p: True,
             "fig12_features.ipynb": lambda run, p: run.split == 0 and run.category == p["categories"][0]}
 FIGURE_MODELS = REPO / "results" / "models"
+sys.path.insert(0, str(REPO / "benchmarks"))  # the metamorphic benchmark's transforms, for the pose agreement
+from metamorphic import TRANSFORMS, compare, label_fn  # noqa: E402
+
+
+def pose_agreement(model, test_set) -> dict[str, float]:
+    """Per metamorphic transform: the least share of a test mesh's area whose label ``model`` keeps under it."""
+    labels = label_fn(model)
+    worst = dict.fromkeys(TRANSFORMS, 1.0)
+    for item in test_set:
+        for name, found in compare(labels, item.mesh, None, list(TRANSFORMS)).items():
+            worst[name] = min(worst[name], found["agreement"])
+    return worst
 
 
 def publish(model, name: str, result: dict, test_set, configuration: str, out: Path = pretrained.MODELS) -> dict:
@@ -63,6 +78,7 @@ def publish(model, name: str, result: dict, test_set, configuration: str, out: P
     file = f"{name.replace('/', '_')}.pt"
     out.mkdir(parents=True, exist_ok=True)
     (out / file).write_bytes(model.to_bytes(half=same))
+    pose = pose_agreement(half if same else model, test_set)
     env = result["environment"]
     entry = {
         "file": file,
@@ -73,6 +89,9 @@ def publish(model, name: str, result: dict, test_set, configuration: str, out: P
                           "train": result["train"]},
         "test_accuracy": result["accuracy"],
         "test_meshes": len(test_set),
+        # Eq. 5 on its own training meshes (how well it fits them; None for a run from before it was recorded)
+        "training_accuracy": result.get("train_accuracy"),
+        "pose_agreement": {"worst over the test meshes, per transform": pose, "least": min(pose.values())},
         "precision": "float16 (no test label changes)" if same else "float32 (float16 changed test labels)",
         "code_revision": env.get("code_revision"),
         "trained_on": trained_on(result),

@@ -33,7 +33,7 @@ def trained():
     model = fit(shapes[:3], shapes[0].label_names, SegmentConfig(cycles=2, clusters=4), TrainConfig(epochs=2, width=16),
                 progress=False)
     result = {"key": "0123456789abcdef", "dataset": "synthetic", "category": "figure", "split_index": 0, "n_train": 3,
-              "segment": {}, "train": {}, "accuracy": {"unit_area": 0.5},
+              "segment": {}, "train": {}, "accuracy": {"unit_area": 0.5}, "train_accuracy": {"unit_area": 0.75},
               "environment": {"code_revision": "abc", "cpus": 2, "cuda": None, "date": "2026-12-02T00:00:00+00:00"}}
     return model, result, shapes[3:5]
 
@@ -57,6 +57,19 @@ def test_a_published_model_segments_as_the_trained_one(shipped):
         for item in test_set:
             assert np.array_equal(segment(item.mesh, loaded).labels, segment(item.mesh, model).labels)
     assert "synthetic figure" in pretrained.describe("synthetic/figure")
+
+
+def test_a_card_says_how_the_model_fits_its_training_meshes_and_keeps_its_labels_when_a_mesh_is_turned(shipped):
+    from metamorphic import compare, label_fn
+
+    model, entry, test_set = shipped
+    assert entry["training_accuracy"] == {"unit_area": 0.75}  # the run's own record
+    pose = entry["pose_agreement"]["worst over the test meshes, per transform"]
+    assert set(pose) == {"rotation", "scale_shift", "face_order", "vertex_order", "flip", "mirror"}
+    assert entry["pose_agreement"]["least"] == min(pose.values()) and all(0.0 <= v <= 1.0 for v in pose.values())
+    shipped_model = Segmenter.pretrained("synthetic/figure")
+    found = [compare(label_fn(shipped_model), item.mesh, None, ["mirror"])["mirror"]["agreement"] for item in test_set]
+    assert pose["mirror"] == min(found)  # the worst test mesh, measured as the benchmark measures it
 
 
 @pytest.mark.parametrize("name", ["../index", "synthetic/../../x", "/etc/passwd", "psb/Nope"])
