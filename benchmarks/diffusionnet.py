@@ -23,13 +23,19 @@ Usage::
     pip install robust_laplacian potpourri3d   # what diffusion_net imports beyond torch, scipy, scikit-learn
     ANSEG_DATA=/path/to/datasets python benchmarks/diffusionnet.py --diffusion-net diffusion-net \\
         [--dataset psb|human_seg] [--category Hand Teddy] [--split 0] [--epochs 200] [--input hks|xyz] \\
-        [--device auto] [--seed 0] [--op-cache DIR] [--json FILE]
+        [--device auto] [--seed 0] [--op-cache DIR] [--json FILE] [--checkpoint DIR]
 
 ``--json FILE`` keeps the figures with the settings, the machine's record
 (CPU model, kernels, releases, revision) and the clone's commit. The tables
 show a peer's number only where such a file is stored under
 ``results/peers/`` (``anseg.study.peers`` reads every file there); name it
 ``diffusionnet_<input>_<category or human_seg>_split<split>_<device>.json``.
+
+``--checkpoint DIR`` writes the training's state there after every epoch
+(weights, optimiser, schedule, random generators, seconds spent), and a run
+that finds the state of the same settings goes on from it: a stopped run
+resumes where it stopped and ends with the weights the uninterrupted run
+would have; its ``train_s`` counts the seconds of every session.
 """
 
 from __future__ import annotations
@@ -95,6 +101,51 @@ class Prepared:
                      gradX=self.grad_x, gradY=self.grad_y, faces=self.faces)
 
 
+class Checkpoint:
+    """A training's state after each epoch in ``--checkpoint``'s folder, one file per data set, category and settings.
+
+    Holds what the next epoch depends on: the weights, the optimiser and its
+    schedule, torch's random generator (the epoch's order and the dropout)
+    and the xyz rotations' generator. Written to a temporary file, then
+    renamed, so a run stopped while writing leaves the last whole state.
+    """
+
+    def __init__(self, args, category, model, optimizer, scheduler, rotation):
+        self.settings = {"dataset": args.dataset, "category": category, "split": args.split, "epochs": args.epochs,
+                         "input": args.input, "seed": args.seed}
+        name = f"diffusionnet_{args.input}_{category or args.dataset}_split{args.split}_seed{args.seed}.ckpt"
+        self.path = Path(args.checkpoint) / name if args.checkpoint else None
+        self.parts = {"model": model, "optimizer": optimizer, "scheduler": scheduler}
+        self.rotation = rotation
+
+    def resume(self) -> tuple[int, float]:
+        """The epoch to start from and the seconds spent before it: (0, 0.0) without a state of these settings."""
+        import torch
+
+        if self.path is None or not self.path.is_file():
+            return 0, 0.0
+        state = torch.load(self.path, weights_only=False)
+        if state["settings"] != self.settings:
+            return 0, 0.0
+        for key, part in self.parts.items():
+            part.load_state_dict(state[key])
+        torch.set_rng_state(state["torch_rng"])
+        self.rotation.set_state(state["rotation"])
+        print(f"resumed at epoch {state['epoch']} from {self.path}", flush=True)
+        return state["epoch"], state["train_s"]
+
+    def save(self, epoch: int, train_s: float) -> None:
+        import torch
+
+        if self.path is None:
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        partial = self.path.with_suffix(".partial")
+        torch.save({"settings": self.settings, "epoch": epoch, "train_s": train_s, "torch_rng": torch.get_rng_state(),
+                    "rotation": self.rotation.get_state(), **{k: p.state_dict() for k, p in self.parts.items()}}, partial)
+        partial.replace(self.path)
+
+
 def run_category(dn, category: str | None, args, device) -> dict:
     """Train on the split's training meshes, score the test meshes; the figures of one PSB category, or of the
     human set (``category`` None, ``--dataset human_seg``: its one split, the paper's)."""
@@ -117,9 +168,12 @@ def run_category(dn, category: str | None, args, device) -> dict:
                                    last_activation=lambda x: torch.nn.functional.log_softmax(x, dim=-1)).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=LR)
     scheduler = torch.optim.lr_scheduler.StepLR(optimizer, step_size=DECAY_EVERY, gamma=DECAY_RATE)
+    state = Checkpoint(args, category, model, optimizer, scheduler, rotation)
+    first, spent = state.resume()
     start = time.perf_counter()
     model.train()
-    for _ in tqdm(range(args.epochs), desc=f"DiffusionNet {category or args.dataset}", unit="epoch"):
+    for epoch in tqdm(range(first, args.epochs), desc=f"DiffusionNet {category or args.dataset}", unit="epoch",
+                      initial=first, total=args.epochs):
         for i in torch.randperm(len(train)).tolist():
             loss = torch.nn.functional.nll_loss(train[i].forward(dn, model, rotation if args.input == "xyz" else None),
                                                 train[i].labels)
@@ -127,14 +181,15 @@ def run_category(dn, category: str | None, args, device) -> dict:
             loss.backward()
             optimizer.step()
         scheduler.step()
-    train_s = time.perf_counter() - start
+        state.save(epoch + 1, spent + time.perf_counter() - start)
+    train_s = spent + time.perf_counter() - start
 
     model.eval()
     with torch.no_grad():
         predicted = [mesh.forward(dn, model).argmax(dim=1).cpu().numpy() for mesh in test]
     scores = pooled_accuracy(predicted, [item.labels for item in test_items], [item.mesh.face_areas for item in test_items])
     return {"category": category or args.dataset, **{key: 100 * value for key, value in scores.items()},
-            "train_s": train_s, "operator_s": operator_s}
+            "train_s": train_s, "operator_s": operator_s, **({"resumed_at_epoch": first} if first else {})}
 
 
 def main(argv=None) -> None:
@@ -153,6 +208,8 @@ def main(argv=None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--op-cache", help="folder where diffusion_net keeps each mesh's operators between runs (default: none)")
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the figures to FILE")
+    parser.add_argument("--checkpoint", type=Path, metavar="DIR",
+                        help="keep each training's state here after every epoch, and resume from it (default: none)")
     args = parser.parse_args(argv)
     if args.dataset == "human_seg" and (args.category or args.split):
         parser.error("the human set has no categories and one split: --category and --split are for PSB")
