@@ -132,10 +132,9 @@ def _table4(p: dict) -> list[PlannedRun]:
     """Split by split, as Table I; with ``every_category``, also split 0 (the clean test) of every other category
     of the data set, for the claim read over every category."""
     others = [c for c in dataset_categories(p["dataset"]) if c not in p["categories"]] if p["every_category"] else []
-    return ([PlannedRun({"category": c, "split": s, "mode": row}, p["dataset"], c, s, *TABLE_IV_ROWS[row])
-             for s in p["splits"] for c in p["categories"] for row in table4_rows(p["config"])]
-            + [PlannedRun({"category": c, "split": 0, "mode": row}, p["dataset"], c, 0, *TABLE_IV_ROWS[row])
-               for c in others for row in table4_rows(p["config"])])
+    units = [(c, s) for s in p["splits"] for c in p["categories"]] + [(c, 0) for c in others]
+    return [PlannedRun({"category": c, "split": s, "mode": row}, p["dataset"], c, s, *TABLE_IV_ROWS[row])
+            for c, s in units for row in table4_rows(p["config"])]
 
 
 @notebook("fig12_features.ipynb", real={"categories": PSB_ABLATION, "splits": [0, 1, 2, 3, 4]},
